@@ -1,0 +1,149 @@
+#pragma once
+
+// Definitions of ImplicitEulerIntegrator's members; included by fsm/implicit_euler_integrator.hpp.
+
+#include <cmath>
+
+namespace fsm {
+
+template <typename Scalar>
+void ImplicitEulerIntegrator<Scalar>::prepare(const SphereModel<Scalar>& model) {
+  const Index n = model.num_nodes();
+  m_blocks.assign(std::size_t(ForceModel<Scalar>::implicit_block_size) *
+                      std::size_t(model.num_links()),
+                  Scalar(0));
+  for (Positions<Scalar>* w : {&m_rhs, &m_diag, &m_dv, &m_r, &m_z, &m_p, &m_q})
+    w->setZero(n, 3);
+  m_last_dt = Scalar(0);
+}
+
+template <typename Scalar>
+IntegratorResult ImplicitEulerIntegrator<Scalar>::step(SphereModel<Scalar>& model,
+                                                       ForceModel<Scalar>& forces,
+                                                       Scalar dt) noexcept {
+  if (!detail::prepared_for(model, m_dv) ||
+      m_blocks.size() != std::size_t(ForceModel<Scalar>::implicit_block_size) *
+                             std::size_t(model.num_links()))
+    return {false, 0};
+  if (m_options.solver == Solver::conjugate_gradient) return solve_cg(model, forces, dt);
+  return solve_assembled(model, forces, dt);
+}
+
+template <typename Scalar>
+IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg(SphereModel<Scalar>& model,
+                                                           ForceModel<Scalar>& forces,
+                                                           Scalar dt) noexcept {
+  const JacobianForm form =
+      m_options.jacobian == JacobianForm::exact ? JacobianForm::symmetric : m_options.jacobian;
+  forces.prepare_implicit(model, dt, form, m_blocks.data(), m_rhs, m_diag);
+  const auto fixed = model.fixed();
+  const Index n = model.num_nodes();
+
+  // Warm start: the previous step's velocity change, scaled to this step size.
+  if (m_last_dt > Scalar(0)) m_dv *= dt / m_last_dt;
+  for (Index i = 0; i < n; ++i)
+    if (fixed[i]) m_dv.row(i).setZero();
+  if (!m_dv.allFinite()) m_dv.setZero();
+
+  forces.apply_implicit(model, m_blocks.data(), m_dv, m_q);
+  m_r = m_rhs - m_q;
+  const Scalar bnorm = m_rhs.norm();
+  const Scalar target = m_options.tolerance * bnorm;
+  int it = 0;
+  bool ok = true;
+  if (m_r.norm() > target) {
+    m_z = m_r.cwiseQuotient(m_diag);
+    m_p = m_z;
+    Scalar rz = m_r.cwiseProduct(m_z).sum();
+    for (it = 1; it <= m_options.max_iterations; ++it) {
+      forces.apply_implicit(model, m_blocks.data(), m_p, m_q);
+      const Scalar pq = m_p.cwiseProduct(m_q).sum();
+      if (!(pq > Scalar(0)) || !std::isfinite(pq)) {  // not positive definite, or NaN
+        ok = false;
+        break;
+      }
+      const Scalar alpha = rz / pq;
+      m_dv += alpha * m_p;
+      m_r -= alpha * m_q;
+      if (m_r.norm() <= target) break;
+      m_z = m_r.cwiseQuotient(m_diag);
+      const Scalar rz_new = m_r.cwiseProduct(m_z).sum();
+      m_p = m_z + (rz_new / rz) * m_p;
+      rz = rz_new;
+    }
+    it = std::min(it, m_options.max_iterations);
+  }
+  if (!ok || !m_dv.allFinite()) {
+    m_dv.setZero();
+    m_last_dt = Scalar(0);
+    return {false, it};
+  }
+  m_last_dt = dt;
+  auto x = model.positions();
+  auto v = model.velocities();
+  v += m_dv;
+  x += dt * v;
+  return {true, it};
+}
+
+template <typename Scalar>
+IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_assembled(SphereModel<Scalar>& model,
+                                                                  ForceModel<Scalar>& forces,
+                                                                  Scalar dt) noexcept {
+  // Reference path: assembles and factorises, so it allocates; any exception (bad_alloc) is a
+  // failed step, never an escaping throw.
+  try {
+    using Sparse = Eigen::SparseMatrix<Scalar>;
+    using Vec = Eigen::Matrix<Scalar, Eigen::Dynamic, 1>;
+    const Index n = model.num_nodes();
+    const bool lu = m_options.solver == Solver::eigen_lu;
+    const JacobianForm form = lu ? JacobianForm::exact
+                              : m_options.jacobian == JacobianForm::exact ? JacobianForm::symmetric
+                                                                          : m_options.jacobian;
+    const Sparse K = forces.stiffness_matrix(model, form);
+    const Sparse D = forces.damping_matrix(model);
+    forces.evaluate(model, model.positions(), model.velocities(), m_q);
+    const auto fixed = model.fixed();
+    const auto mass = model.masses();
+
+    Sparse A = -dt * D - (dt * dt) * K;
+    A.prune([&](Index r, Index c, const Scalar&) { return !fixed[r / 3] && !fixed[c / 3]; });
+    std::vector<Eigen::Triplet<Scalar>> diag;
+    diag.reserve(3 * std::size_t(n));
+    for (Index i = 0; i < n; ++i)
+      for (int c = 0; c < 3; ++c) diag.emplace_back(3 * i + c, 3 * i + c, fixed[i] ? 1 : mass[i]);
+    Sparse Mm(3 * n, 3 * n);
+    Mm.setFromTriplets(diag.begin(), diag.end());
+    A += Mm;
+    A.makeCompressed();
+
+    const Eigen::Map<const Vec> vflat(model.velocities().data(), 3 * n);
+    const Eigen::Map<const Vec> fflat(m_q.data(), 3 * n);
+    Vec b = dt * fflat + (dt * dt) * (K * vflat);
+    for (Index i = 0; i < n; ++i)
+      if (fixed[i]) b.template segment<3>(3 * i).setZero();
+
+    Vec dv;
+    if (lu) {
+      Eigen::SparseLU<Sparse> solver;
+      solver.compute(A);
+      if (solver.info() != Eigen::Success) return {false, 0};
+      dv = solver.solve(b);
+    } else {
+      Eigen::SimplicialLDLT<Sparse> solver;
+      solver.compute(A);
+      if (solver.info() != Eigen::Success) return {false, 0};
+      dv = solver.solve(b);
+    }
+    if (!dv.allFinite()) return {false, 0};
+    auto x = model.positions();
+    auto v = model.velocities();
+    Eigen::Map<Vec>(v.data(), 3 * n) += dv;
+    x += dt * v;
+    return {true, 1};
+  } catch (...) {
+    return {false, 0};
+  }
+}
+
+}  // namespace fsm

@@ -1,0 +1,167 @@
+#pragma once
+
+/// @file simulation.hpp
+/// @brief Simulation: a SphereModel, its forces and an integrator, stepped safely.
+
+#include <memory>
+#include <string>
+#include <string_view>
+
+#include "fsm/force_model.hpp"
+#include "fsm/integrator.hpp"
+#include "fsm/sphere_model.hpp"
+#include "fsm/stability.hpp"
+
+namespace fsm {
+
+/// @brief How a step ended.
+enum class StepStatus {
+  ok,                 ///< Advanced by dt.
+  recovered,          ///< Advanced by dt, but only after automatic sub-stepping.
+  diverged,           ///< The step diverged and the state was rolled back to before it.
+  invalid_time_step,  ///< dt was not positive and finite; nothing changed.
+};
+
+/// @brief Name of a StepStatus ("ok", "recovered", "diverged", "invalid_time_step").
+[[nodiscard]] const char* to_string(StepStatus status) noexcept;
+
+/// @brief What Simulation::step() reports.
+template <typename Scalar>
+struct StepReport {
+  StepStatus status{StepStatus::ok};
+  int substeps{0};           ///< Integrator steps taken (2^k after k halvings).
+  int solver_iterations{0};  ///< Summed linear-solver iterations (implicit schemes).
+  /// Kinetic + elastic + gravitational energy after the step (J); NaN when not checked.
+  Scalar energy{std::numeric_limits<Scalar>::quiet_NaN()};
+  /// @brief True if the model advanced by dt.
+  [[nodiscard]] bool advanced() const noexcept {
+    return status == StepStatus::ok || status == StepStatus::recovered;
+  }
+};
+
+/// @brief The energy account of a simulation (J).
+template <typename Scalar>
+struct EnergyReport {
+  Scalar kinetic{0};
+  Scalar elastic{0};
+  Scalar gravity{0};          ///< Relative to the rest configuration.
+  Scalar external_work{0};    ///< Work of the external forces since the reference was taken.
+  Scalar reference{0};        ///< Total energy when the reference was taken.
+  [[nodiscard]] Scalar total() const noexcept { return kinetic + elastic + gravity; }
+  /// The most energy the model may physically hold: reference + external work (damping only
+  /// removes energy).
+  [[nodiscard]] Scalar budget() const noexcept { return reference + external_work; }
+};
+
+/// @brief When a step counts as diverged, and what to do then.
+template <typename Scalar>
+struct DivergencePolicy {
+  /// Check the energy after each step (one extra pass over the links); non-finite states are
+  /// always caught.
+  bool check_energy{true};
+  /// A step diverges when its energy exceeds budget + tolerance * |budget| + floor.
+  Scalar energy_tolerance{Scalar(1)};
+  /// The floor is the energy of every link strained by this much (so a model at rest with a
+  /// tiny budget does not trip on rounding).
+  Scalar energy_floor_strain{Scalar(0.01)};
+  /// After a divergence, retry with 2, 4, ... 2^k sub-steps (k = 0 turns this off).
+  int max_substep_halvings{0};
+};
+
+/// @brief A SphereModel stepped in time by an integrator under a ForceModel, with divergence
+/// detection and rollback.
+///
+/// step(dt) allocates nothing and never throws. A step whose state is not finite, or whose
+/// energy exceeds the physical budget (the reference energy plus the work of the external forces;
+/// damping can only remove energy) by more than the policy allows, is undone: the model returns to
+/// the state before the step and the report says `diverged`. With sub-stepping enabled the step
+/// is first retried with smaller steps.
+///
+/// Edits to positions or velocities between steps are allowed: the simulation notices them and
+/// takes a new energy reference. After editing masses, fixed flags or link constants in place,
+/// call refresh().
+template <typename Scalar>
+class Simulation {
+ public:
+  struct Options {
+    /// Integrator registry name (see integrator_names()).
+    std::string integrator{"implicit_euler"};
+    typename ForceModel<Scalar>::Options forces{};
+    DivergencePolicy<Scalar> divergence{};
+  };
+
+  /// @brief Validates the model (fsm::Error on bad input) and prepares everything for stepping.
+  explicit Simulation(SphereModel<Scalar> model, const Options& options = Options{});
+  /// @brief The same with a configured integrator (options.integrator is ignored).
+  Simulation(SphereModel<Scalar> model, std::unique_ptr<Integrator<Scalar>> integrator,
+             const Options& options = Options{});
+
+  /// @brief Advances by dt seconds. Never allocates, never throws.
+  StepReport<Scalar> step(Scalar dt) noexcept;
+
+  /// @brief The model (positions and velocities may be edited between steps).
+  [[nodiscard]] SphereModel<Scalar>& model() noexcept { return m_model; }
+  [[nodiscard]] const SphereModel<Scalar>& model() const noexcept { return m_model; }
+  /// @brief The forces (external forces, gravity, damping model, threads).
+  [[nodiscard]] ForceModel<Scalar>& forces() noexcept { return m_forces; }
+  [[nodiscard]] const ForceModel<Scalar>& forces() const noexcept { return m_forces; }
+  /// @brief External force per node (N), `|V| x 3`, held until changed.
+  Eigen::Map<Positions<Scalar>> external_forces() noexcept { return m_forces.external_forces(); }
+  [[nodiscard]] Integrator<Scalar>& integrator() noexcept { return *m_integrator; }
+  [[nodiscard]] const Options& options() const noexcept { return m_options; }
+
+  /// @brief Swaps the integrator (nothing else changes).
+  void set_integrator(std::unique_ptr<Integrator<Scalar>> integrator);
+  /// @brief Swaps the integrator by registry name.
+  void set_integrator(std::string_view name);
+  /// @brief Changes the divergence policy.
+  void set_divergence_policy(const DivergencePolicy<Scalar>& policy);
+  /// @brief Changes gravity, damping model or thread count.
+  void set_force_options(const typename ForceModel<Scalar>::Options& options);
+
+  /// @brief Fixes or frees a node (its velocity is zeroed when fixed).
+  void set_fixed(Index node, bool fixed = true);
+  /// @brief Re-validates the model and re-derives everything from it (inverse masses, bounds,
+  /// workspaces, energy reference). Call after editing model arrays other than positions and
+  /// velocities. Not real-time safe.
+  void refresh();
+
+  /// @brief Bounds on the model's highest eigenfrequency and damping (at rest).
+  [[nodiscard]] const SpectralBound<Scalar>& spectral_bound() const noexcept { return m_bound; }
+  /// @brief The current integrator's largest stable step for this model (s).
+  [[nodiscard]] Scalar stable_time_step() const noexcept {
+    return m_integrator->stable_time_step(m_bound);
+  }
+  /// @brief Energy account at the current state.
+  [[nodiscard]] EnergyReport<Scalar> energy() const noexcept;
+  /// @brief Takes the current energy as the new reference (external work restarts at 0).
+  void reset_energy_reference() noexcept;
+  /// @brief Simulated time (s) since construction or reset().
+  [[nodiscard]] Scalar time() const noexcept { return m_time; }
+  /// @brief Back to rest, zero velocity, zero external force, time 0.
+  void reset() noexcept;
+
+ private:
+  [[nodiscard]] Scalar total_energy() const noexcept;
+  void save_state() noexcept;
+  void restore_state() noexcept;
+  [[nodiscard]] bool state_matches_saved() const noexcept;
+
+  SphereModel<Scalar> m_model;
+  Options m_options;
+  ForceModel<Scalar> m_forces;
+  std::unique_ptr<Integrator<Scalar>> m_integrator;
+  SpectralBound<Scalar> m_bound;
+  Positions<Scalar> m_saved_x, m_saved_v;
+  Scalar m_energy_reference{0};
+  Scalar m_external_work{0};
+  Scalar m_energy_floor{0};
+  Scalar m_time{0};
+};
+
+extern template class Simulation<float>;
+extern template class Simulation<double>;
+
+}  // namespace fsm
+
+#include "fsm/impl/simulation-inl.hpp"

@@ -1,0 +1,38 @@
+#pragma once
+
+/// @file types.hpp
+/// @brief Array types shared by the whole runtime.
+
+#include <Eigen/Core>
+#include <cstdint>
+
+namespace fsm {
+
+/// @brief Index of a node, link or region. 32 bits: a model of 2^31 links would not fit the
+/// real-time budget anyway, and half-width indices halve the index traffic of the force loop.
+using Index = std::int32_t;
+
+/// @brief Row-major `N x 3` array of points or vectors (metres, m/s or newtons). Row-major so
+/// that a node's x, y, z are adjacent (one cache line for a gather) and numpy sees it unchanged.
+template <typename Scalar>
+using Positions = Eigen::Matrix<Scalar, Eigen::Dynamic, 3, Eigen::RowMajor>;
+
+/// @brief Column vector of per-node or per-link scalars.
+template <typename Scalar>
+using ScalarArray = Eigen::Matrix<Scalar, Eigen::Dynamic, 1>;
+
+/// @brief Row-major `|L| x 2` array of node pairs.
+using LinkArray = Eigen::Matrix<Index, Eigen::Dynamic, 2, Eigen::RowMajor>;
+
+/// @brief Row-major `|T| x 4` array of tetrahedra (node indices).
+using TetrahedronArray = Eigen::Matrix<Index, Eigen::Dynamic, 4, Eigen::RowMajor>;
+
+/// @brief A 3-vector.
+template <typename Scalar>
+using Vector3 = Eigen::Matrix<Scalar, 3, 1>;
+
+/// @brief A 3 x 3 matrix.
+template <typename Scalar>
+using Matrix3 = Eigen::Matrix<Scalar, 3, 3>;
+
+}  // namespace fsm

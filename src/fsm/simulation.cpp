@@ -1,0 +1,6 @@
+#include "fsm/simulation.hpp"
+
+namespace fsm {
+template class Simulation<float>;
+template class Simulation<double>;
+}  // namespace fsm
