@@ -9,6 +9,8 @@
 #include <complex>
 #include <limits>
 
+#include <Eigen/Eigenvalues>
+
 #include "fsm/sphere_model.hpp"
 
 namespace fsm {
@@ -35,44 +37,76 @@ struct SpectralBound {
   }
 };
 
-/// @brief Gershgorin (block) bounds for a model at rest.
+/// @brief Block-Gershgorin bounds for a model at rest.
 ///
-/// For each free node i, \f$\lambda_{max}(\mathbf{M}^{-1/2}\mathbf{K}\mathbf{M}^{-1/2}) \le
-/// \max_i \sum_{l\ni i} k_l\,(1/m_i + [j\ \text{free}]/\sqrt{m_i m_j})\f$, with \f$k_l\f$ the larger
-/// of the link's two stiffnesses; the same with \f$k_d\f$ bounds the damping rate (for full
-/// relative-velocity damping the blocks are \f$k_d\mathbf{I}\f$, same norm). Exact for two equal
-/// spheres; the geometric stiffness of pre-stressed links is not included.
+/// In \f$\mathbf{A} = \mathbf{M}^{-1/2}\mathbf{K}\mathbf{M}^{-1/2}\f$ the diagonal block of a
+/// free node is \f$\mathbf{S}_i/m_i\f$ with \f$\mathbf{S}_i = \sum_{l\ni i} k_l\mathbf{n}_l
+/// \mathbf{n}_l^T\f$ and the off-diagonal block of a link to a free node has norm
+/// \f$k_l/\sqrt{m_i m_j}\f$, so (Feingold and Varga's block Gershgorin theorem)
+/// \f[ \omega_{max}^2 \le \max_i \Big[\lambda_{max}(\mathbf{S}_i)/m_i +
+///     \sum_{l\ni i,\,j\,\text{free}} k_l/\sqrt{m_i m_j}\Big], \f]
+/// with \f$k_l\f$ the larger of the link's two stiffnesses. The same with \f$k_d\f$ bounds the
+/// damping rate (blocks \f$k_d\mathbf{n}\mathbf{n}^T\f$ along the link, \f$k_d\mathbf{I}\f$ for
+/// full relative-velocity damping). Exact for two equal spheres; the geometric stiffness of
+/// pre-stressed links is not included.
 template <typename Scalar>
-[[nodiscard]] SpectralBound<Scalar> spectral_bound(const SphereModel<Scalar>& model) {
+[[nodiscard]] SpectralBound<Scalar> spectral_bound(
+    const SphereModel<Scalar>& model, DampingModel damping = DampingModel::along_link) {
   const Index n = model.num_nodes();
-  ScalarArray<Scalar> ks = ScalarArray<Scalar>::Zero(n), kd = ScalarArray<Scalar>::Zero(n);
+  // Per node: the upper triangle of S_i (xx, xy, xz, yy, yz, zz) for stiffness and damping, and
+  // the off-diagonal sums.
+  Eigen::Matrix<double, Eigen::Dynamic, 6> ks = Eigen::Matrix<double, Eigen::Dynamic, 6>::Zero(n, 6);
+  Eigen::Matrix<double, Eigen::Dynamic, 6> kd = ks;
+  Eigen::VectorXd ks_off = Eigen::VectorXd::Zero(n), kd_off = Eigen::VectorXd::Zero(n);
   const auto links = model.links();
+  const auto x = model.rest_positions();
   const auto mass = model.masses();
   const auto fixed = model.fixed();
   const auto stiff = model.stiffness();
   const auto large = model.large_stiffness();
   const auto damp = model.damping();
-  Scalar tau = std::numeric_limits<Scalar>::infinity();
+  double tau = std::numeric_limits<double>::infinity();
   for (Index l = 0; l < model.num_links(); ++l) {
     const Index i = links(l, 0), j = links(l, 1);
-    const Scalar k = std::max(stiff[l], large[l]);
-    tau = std::min(tau, damp[l] / k);
-    const Scalar cross = Scalar(1) / std::sqrt(mass[i] * mass[j]);
-    if (!fixed[i]) {
-      const Scalar w = Scalar(1) / mass[i] + (fixed[j] ? Scalar(0) : cross);
-      ks[i] += k * w;
-      kd[i] += damp[l] * w;
-    }
-    if (!fixed[j]) {
-      const Scalar w = Scalar(1) / mass[j] + (fixed[i] ? Scalar(0) : cross);
-      ks[j] += k * w;
-      kd[j] += damp[l] * w;
+    const double k = std::max(double(stiff[l]), double(large[l]));
+    const double c = double(damp[l]);
+    tau = std::min(tau, c / k);
+    const Eigen::Vector3d d = (x.row(j) - x.row(i)).template cast<double>().transpose();
+    const Eigen::Vector3d u = d.normalized();
+    const double nn[6] = {u.x() * u.x(), u.x() * u.y(), u.x() * u.z(),
+                          u.y() * u.y(), u.y() * u.z(), u.z() * u.z()};
+    const double eye[6] = {1, 0, 0, 1, 0, 1};
+    const double* dshape = damping == DampingModel::along_link ? nn : eye;
+    const double cross = 1.0 / std::sqrt(double(mass[i]) * double(mass[j]));
+    for (const auto& [a, b] : {std::pair{i, j}, std::pair{j, i}}) {
+      if (fixed[a]) continue;
+      for (int e = 0; e < 6; ++e) {
+        ks(a, e) += k * nn[e];
+        kd(a, e) += c * dshape[e];
+      }
+      if (!fixed[b]) {
+        ks_off[a] += k * cross;
+        kd_off[a] += c * cross;
+      }
     }
   }
+  auto lmax = [](const auto& row) {
+    Eigen::Matrix3d S;
+    S << row(0), row(1), row(2), row(1), row(3), row(4), row(2), row(4), row(5);
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+    es.computeDirect(S, Eigen::EigenvaluesOnly);
+    return es.eigenvalues().maxCoeff();
+  };
+  double w2 = 0, c = 0;
+  for (Index i = 0; i < n; ++i) {
+    if (fixed[i]) continue;
+    w2 = std::max(w2, lmax(ks.row(i)) / double(mass[i]) + ks_off[i]);
+    c = std::max(c, lmax(kd.row(i)) / double(mass[i]) + kd_off[i]);
+  }
   SpectralBound<Scalar> b;
-  b.omega_max = n > 0 ? std::sqrt(ks.maxCoeff()) : Scalar(0);
-  b.damping_max = n > 0 ? kd.maxCoeff() : Scalar(0);
-  b.retardation_min = model.num_links() > 0 ? tau : Scalar(0);
+  b.omega_max = Scalar(std::sqrt(w2));
+  b.damping_max = Scalar(c);
+  b.retardation_min = model.num_links() > 0 ? Scalar(tau) : Scalar(0);
   return b;
 }
 

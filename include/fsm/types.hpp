@@ -4,6 +4,7 @@
 /// @brief Array types shared by the whole runtime.
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cstdint>
 
 namespace fsm {

@@ -48,7 +48,7 @@ void Simulation<Scalar>::refresh() {
   m_forces.set_options(m_options.forces);
   m_forces.refresh(m_model);
   m_integrator->prepare(m_model);
-  m_bound = fsm::spectral_bound(m_model);
+  m_bound = fsm::spectral_bound(m_model, m_options.forces.damping);
   const auto k = m_model.stiffness();
   const auto l0 = m_model.rest_lengths();
   const Scalar s = d.energy_floor_strain;
@@ -88,7 +88,7 @@ template <typename Scalar>
 void Simulation<Scalar>::set_fixed(Index node, bool fixed) {
   m_model.set_fixed(node, fixed);
   m_forces.refresh(m_model);
-  m_bound = fsm::spectral_bound(m_model);
+  m_bound = fsm::spectral_bound(m_model, m_options.forces.damping);
   save_state();
   reset_energy_reference();
 }

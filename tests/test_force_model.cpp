@@ -1,0 +1,190 @@
+// ForceModel: Newton's third law on random models, zero internal torque, gravity and external
+// loads, assembled Jacobians against finite differences, the matrix-free implicit operator against
+// the assembled matrix, and threads giving the same forces.
+
+#include <random>
+
+#include "common.hpp"
+
+namespace fsm::test {
+namespace {
+
+template <typename S>
+Vector3<S> torque(const Positions<S>& x, const Positions<S>& f) {
+  Vector3<S> t = Vector3<S>::Zero();
+  for (Index i = 0; i < x.rows(); ++i) t += x.row(i).transpose().cross(f.row(i).transpose());
+  return t;
+}
+
+template <typename Scalar>
+class ForceModelTyped : public ::testing::Test {};
+using Scalars = ::testing::Types<float, double>;
+TYPED_TEST_SUITE(ForceModelTyped, Scalars);
+
+// Internal forces sum to zero. Float sums of ~1e3 terms carry ~1e-6 relative rounding.
+TYPED_TEST(ForceModelTyped, InternalForcesSumToZeroAndHaveNoTorque) {
+  using S = TypeParam;
+  const double tol = std::is_same_v<S, float> ? 2e-5 : 1e-12;
+  std::mt19937 rng(5);
+  for (int trial = 0; trial < 10; ++trial) {
+    for (bool bilinear : {false, true}) {
+      SphereModel<S> model = random_model<S>(rng, {3, 4, 3}, S(0.3), bilinear);
+      // Large random displacements so bilinear links switch and geometry is far from rest.
+      std::uniform_real_distribution<double> u(-1, 1);
+      for (Index i = 0; i < model.num_nodes(); ++i)
+        for (int c = 0; c < 3; ++c) model.positions()(i, c) += S(0.002 * u(rng));
+      ForceModel<S> forces = no_gravity(model, DampingModel::along_link);
+      Positions<S> f(model.num_nodes(), 3);
+      forces.evaluate(model, model.positions(), model.velocities(), f);
+      const double scale = double(f.cwiseAbs().sum());
+      ASSERT_GT(scale, 0);
+      EXPECT_LT(double(f.colwise().sum().norm()), tol * scale);
+      const double lever = double(model.positions().cwiseAbs().maxCoeff());
+      EXPECT_LT(double(torque(Positions<S>(model.positions()), f).norm()), tol * scale * lever);  // central
+    }
+  }
+}
+
+// The paper's full relative-velocity damping sums to zero too, but twists: at rest positions (no
+// elastic force) a rigid spin meets a damping torque.
+TEST(ForceModel, FullRelativeVelocityDampingResistsRigidSpin) {
+  std::mt19937 rng(6);
+  SphereModel<double> model = random_model<double>(rng, {3, 3, 3}, 0.2);
+  model.reset_to_rest();
+  for (Index i = 0; i < model.num_nodes(); ++i) {
+    model.velocities()(i, 0) = -model.positions()(i, 1);
+    model.velocities()(i, 1) = model.positions()(i, 0);
+  }
+  Positions<double> f(model.num_nodes(), 3);
+  no_gravity(model, DampingModel::along_link).evaluate(model, model.positions(), model.velocities(), f);
+  EXPECT_LT(f.norm(), 1e-12);  // rigid motion: no force along the links
+  no_gravity(model, DampingModel::full_relative_velocity).evaluate(model, model.positions(), model.velocities(), f);
+  EXPECT_LT(f.colwise().sum().norm(), 1e-12 * f.cwiseAbs().sum());
+  EXPECT_LT(torque(Positions<double>(model.positions()), f).z(), -1e-3 * f.cwiseAbs().sum() * 0.03);
+}
+
+TEST(ForceModel, GravityAndExternalForcesAreAdded) {
+  SphereModel<double> model = two_spheres(0.002, 100.0, 0.0);
+  ForceModel<double> forces(model);  // default gravity (0, 0, -9.81)
+  forces.external_forces()(1, 0) = 0.5;
+  Positions<double> f(2, 3);
+  forces.evaluate(model, model.positions(), model.velocities(), f);
+  EXPECT_TRUE(near(f(0, 2), -9.81 * 0.002, 1e-14));
+  EXPECT_TRUE(near(f(1, 0), 0.5, 1e-14));
+  forces.clear_external_forces();
+  forces.evaluate(model, model.positions(), model.velocities(), f);
+  EXPECT_EQ(f(1, 0), 0.0);
+  // Fixed nodes get inverse mass 0.
+  model.set_fixed(0);
+  forces.refresh(model);
+  EXPECT_EQ(forces.inverse_masses()[0], 0.0);
+  EXPECT_TRUE(near(forces.inverse_masses()[1], 500.0, 1e-14));
+}
+
+// The assembled dF/dx and dF/dv against central differences of evaluate().
+TEST(ForceModel, AssembledJacobiansMatchFiniteDifferences) {
+  std::mt19937 rng(9);
+  for (DampingModel dm : {DampingModel::along_link, DampingModel::full_relative_velocity}) {
+    SphereModel<double> model = random_model<double>(rng, {2, 2, 2}, 0.3, true);
+    ForceModel<double> forces = no_gravity(model, dm);
+    const Index n = model.num_nodes();
+    const Eigen::MatrixXd K = Eigen::MatrixXd(forces.stiffness_matrix(model, JacobianForm::exact));
+    const Eigen::MatrixXd D = Eigen::MatrixXd(forces.damping_matrix(model));
+    Eigen::MatrixXd Kfd(3 * n, 3 * n), Dfd(3 * n, 3 * n);
+    Positions<double> fp(n, 3), fm(n, 3);
+    for (Index k = 0; k < 3 * n; ++k) {
+      const double hx = 1e-8, hv = 1e-6;
+      Positions<double> x = model.positions(), v = model.velocities();
+      x(k / 3, k % 3) += hx;
+      forces.evaluate(model, x, v, fp);
+      x(k / 3, k % 3) -= 2 * hx;
+      forces.evaluate(model, x, v, fm);
+      Kfd.col(k) = Eigen::Map<const Eigen::VectorXd>((fp - fm).eval().data(), 3 * n) / (2 * hx);
+      x = model.positions();
+      v(k / 3, k % 3) += hv;
+      forces.evaluate(model, x, v, fp);
+      v(k / 3, k % 3) -= 2 * hv;
+      forces.evaluate(model, x, v, fm);
+      Dfd.col(k) = Eigen::Map<const Eigen::VectorXd>((fp - fm).eval().data(), 3 * n) / (2 * hv);
+    }
+    EXPECT_TRUE(matrices_near(K, Kfd, 1e-5));
+    EXPECT_TRUE(matrices_near(D, Dfd, 1e-7));
+    // The symmetric form is the symmetric part of the exact one when damping is along the link
+    // (the dropped term is the non-symmetric n (P u)^T k_d / l).
+    const Eigen::MatrixXd Ks = Eigen::MatrixXd(forces.stiffness_matrix(model, JacobianForm::symmetric));
+    EXPECT_TRUE(matrices_near(Ks, Ks.transpose().eval(), 1e-14));
+    // The definite form makes -K positive semi-definite.
+    const Eigen::MatrixXd Kd = Eigen::MatrixXd(forces.stiffness_matrix(model, JacobianForm::definite));
+    EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(-Kd).eigenvalues().minCoeff(),
+              -1e-9 * Kd.cwiseAbs().maxCoeff());
+  }
+}
+
+// The matrix-free operator and right-hand side equal the assembled A = M - hD - h^2 K and
+// b = h F + h^2 K v (rows and columns of fixed nodes removed).
+TEST(ForceModel, MatrixFreeImplicitOperatorMatchesAssembledMatrix) {
+  std::mt19937 rng(13);
+  for (DampingModel dm : {DampingModel::along_link, DampingModel::full_relative_velocity}) {
+    SphereModel<double> model = random_model<double>(rng, {3, 2, 2}, 0.3, false);
+    model.set_fixed(0);
+    model.set_fixed(5);
+    ForceModel<double> forces = no_gravity(model, dm);
+    forces.external_forces()(3, 1) = 0.01;
+    const Index n = model.num_nodes();
+    const double h = 2e-3;
+    std::vector<double> blocks(5 * std::size_t(model.num_links()));
+    Positions<double> rhs(n, 3), diag(n, 3), y(n, 3), p(n, 3);
+    forces.prepare_implicit(model, h, JacobianForm::symmetric, blocks.data(), rhs, diag);
+
+    const Eigen::MatrixXd K = Eigen::MatrixXd(forces.stiffness_matrix(model, JacobianForm::symmetric));
+    const Eigen::MatrixXd D = Eigen::MatrixXd(forces.damping_matrix(model));
+    Eigen::MatrixXd A = -h * D - h * h * K;
+    for (Index i = 0; i < n; ++i) A.block<3, 3>(3 * i, 3 * i) += model.masses()[i] * Eigen::Matrix3d::Identity();
+    Positions<double> F(n, 3);
+    forces.evaluate(model, model.positions(), model.velocities(), F);
+    Eigen::VectorXd b = h * Eigen::Map<const Eigen::VectorXd>(F.data(), 3 * n) +
+                        h * h * K * Eigen::Map<const Eigen::VectorXd>(model.velocities().data(), 3 * n);
+    std::uniform_real_distribution<double> u(-1, 1);
+    for (Index i = 0; i < n; ++i)
+      for (int c = 0; c < 3; ++c) p(i, c) = model.fixed()[i] ? 0.0 : u(rng);
+    forces.apply_implicit(model, blocks.data(), p, y);
+    Eigen::VectorXd Ap = A * Eigen::Map<const Eigen::VectorXd>(p.data(), 3 * n);
+    for (Index i = 0; i < n; ++i)
+      if (model.fixed()[i]) {
+        Ap.segment<3>(3 * i).setZero();
+        b.segment<3>(3 * i).setZero();
+      }
+    EXPECT_TRUE(matrices_near(Eigen::Map<const Eigen::VectorXd>(y.data(), 3 * n), Ap, 1e-12));
+    EXPECT_TRUE(matrices_near(Eigen::Map<const Eigen::VectorXd>(rhs.data(), 3 * n), b, 1e-12));
+    for (Index i = 0; i < n; ++i)
+      for (int c = 0; c < 3; ++c)
+        EXPECT_TRUE(near(diag(i, c), model.fixed()[i] ? 1.0 : A(3 * i + c, 3 * i + c), 1e-12));
+  }
+}
+
+TEST(ForceModel, TwoThreadsGiveTheSameForcesAsOne) {
+  if (detail::max_threads() < 2) GTEST_SKIP() << "built without OpenMP or only one thread";
+  std::mt19937 rng(17);
+  SphereModel<double> model = random_model<double>(rng, {6, 5, 7}, 0.3, true);
+  ForceModel<double> one = no_gravity(model, DampingModel::along_link, 1);
+  ForceModel<double> two = no_gravity(model, DampingModel::along_link, 2);
+  Positions<double> f1(model.num_nodes(), 3), f2(model.num_nodes(), 3);
+  one.evaluate(model, model.positions(), model.velocities(), f1);
+  two.evaluate(model, model.positions(), model.velocities(), f2);
+  EXPECT_TRUE(matrices_near(f1, f2, 1e-13));
+}
+
+TEST(ForceModel, EnergiesAreZeroAtRestAndPositiveWhenStrained) {
+  SphereModel<double> model = two_spheres(0.002, 100.0, 0.0);
+  const ForceModel<double> forces(model);
+  EXPECT_EQ(forces.elastic_energy(model, model.positions()), 0.0);
+  EXPECT_EQ(forces.gravity_energy(model, model.positions()), 0.0);
+  model.positions()(1, 0) += 0.001;
+  EXPECT_TRUE(near(forces.elastic_energy(model, model.positions()), 0.5 * 100 * 1e-6, 1e-9));
+  model.positions().col(2).array() -= 0.01;  // both sink 1 cm: lose 2 m g h, no strain change
+  EXPECT_TRUE(near(forces.elastic_energy(model, model.positions()), 0.5 * 100 * 1e-6, 1e-9));
+  EXPECT_TRUE(near(forces.gravity_energy(model, model.positions()), -2 * 0.002 * 9.81 * 0.01, 1e-12));
+}
+
+}  // namespace
+}  // namespace fsm::test

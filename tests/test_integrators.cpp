@@ -1,0 +1,397 @@
+// The four integrators: the two-sphere oscillator's frequency and damping ratio against the
+// analytic solution, convergence order by step halving, measured stability limits against the
+// analytic bounds, implicit Euler far beyond them, energy behaviour, momentum conservation and
+// fixed nodes. float and double where the property does not depend on rounding.
+
+#include <random>
+
+#include "common.hpp"
+
+namespace fsm::test {
+namespace {
+
+template <typename Scalar>
+std::unique_ptr<Integrator<Scalar>> make(const std::string& name, double cg_tolerance = 0) {
+  if (name == "implicit_euler" && cg_tolerance > 0) {
+    typename ImplicitEulerIntegrator<Scalar>::Options o;
+    o.tolerance = Scalar(cg_tolerance);
+    o.max_iterations = 2000;
+    return std::make_unique<ImplicitEulerIntegrator<Scalar>>(o);
+  }
+  return make_integrator<Scalar>(name);
+}
+
+// The relative coordinate q = l - l0 of the two-sphere model and its rate.
+template <typename Scalar>
+double gap(const SphereModel<Scalar>& m, double l0) {
+  return double(m.positions()(1, 0) - m.positions()(0, 0)) - l0;
+}
+
+template <typename Scalar>
+class IntegratorsTyped : public ::testing::Test {};
+using Scalars = ::testing::Types<float, double>;
+TYPED_TEST_SUITE(IntegratorsTyped, Scalars);
+
+// Heun at omega h = 0.01: its phase and amplitude errors per period are O((omega h)^2) ~ 1e-4,
+// so frequency and damping ratio must match to 1e-3 (float: 3e-3, rounding of 1e-2 m positions
+// moved by 1e-7 m per step).
+TYPED_TEST(IntegratorsTyped, TwoSphereOscillatorFrequencyAndDampingRatio) {
+  using S = TypeParam;
+  const double tol = std::is_same_v<S, float> ? 3e-3 : 1e-3;
+  const double m = 0.001, k = 500, w0 = std::sqrt(2 * k / m);  // 1000 rad/s
+  for (double zeta : {0.02, 0.1}) {
+    const double kd = zeta * w0 * m;  // c = 2 kd / m = 2 zeta w0
+    const double l0 = 0.01;
+    SphereModel<S> model = two_spheres<S>(S(m), S(k), S(kd), S(l0));
+    model.positions()(1, 0) += S(1e-4);
+    ForceModel<S> forces = no_gravity(model);
+    HeunIntegrator<S> heun;
+    heun.prepare(model);
+    const double h = 0.01 / w0;
+    std::vector<double> crossings, peaks;
+    double q_prev2 = 0, q_prev = gap(model, l0), t = 0;
+    for (int s = 0; s < 6 * 628; ++s) {  // six periods
+      heun.step(model, forces, S(h));
+      t += h;
+      const double q = gap(model, l0);
+      if ((q_prev < 0) != (q < 0)) crossings.push_back(t - h * q / (q - q_prev));
+      if (s > 1 && q_prev > q_prev2 && q_prev >= q && q_prev > 0) {
+        // Parabola through the three samples around the maximum.
+        const double a = 0.5 * (q_prev2 - 2 * q_prev + q), b = 0.5 * (q - q_prev2);
+        peaks.push_back(q_prev - b * b / (4 * a));
+      }
+      q_prev2 = q_prev;
+      q_prev = q;
+    }
+    ASSERT_GE(crossings.size(), 10u);
+    ASSERT_GE(peaks.size(), 5u);
+    const double wd = M_PI * double(crossings.size() - 1) / (crossings.back() - crossings.front());
+    EXPECT_TRUE(near(wd, w0 * std::sqrt(1 - zeta * zeta), tol)) << "zeta " << zeta;
+    const double delta = std::log(peaks.front() / peaks.back()) / double(peaks.size() - 1);
+    const double zeta_measured = delta / std::sqrt(4 * M_PI * M_PI + delta * delta);
+    EXPECT_TRUE(near(zeta_measured, zeta, 10 * tol)) << "zeta " << zeta;
+  }
+}
+
+// Step halving on a nonlinear random model: p = log2(|x_h - x_{h/2}| / |x_{h/2} - x_{h/4}|).
+TEST(Integrators, ConvergenceOrderFromStepHalving) {
+  std::mt19937 rng(31);
+  const SphereModel<double> start = random_model<double>(rng, {2, 2, 2}, 0.3, false, 20.0);
+  const auto bound = spectral_bound(start);
+  struct Case {
+    std::string name;
+    double expected;
+  };
+  for (const Case& c : {Case{"heun", 2}, Case{"symplectic_euler", 1}, Case{"improved_euler", 1},
+                        Case{"implicit_euler", 1}}) {
+    auto integrator = make<double>(c.name, 1e-13);
+    const double limit = std::min({symplectic_euler_limit(bound), heun_limit(bound),
+                                   improved_euler_limit(bound)});
+    const double T = 40 * limit, h0 = 0.1 * limit;
+    std::vector<Positions<double>> finals;
+    for (int level = 0; level < 3; ++level) {
+      SphereModel<double> model = start;
+      ForceModel<double> forces = no_gravity(model);
+      integrator->prepare(model);
+      const double h = h0 / (1 << level);
+      const int steps = int(std::lround(T / h));
+      for (int s = 0; s < steps; ++s) ASSERT_TRUE(integrator->step(model, forces, h).ok);
+      finals.push_back(model.positions());
+    }
+    const double e1 = (finals[0] - finals[1]).norm(), e2 = (finals[1] - finals[2]).norm();
+    const double p = std::log2(e1 / e2);
+    EXPECT_NEAR(p, c.expected, 0.25) << c.name;
+    EXPECT_EQ(integrator->order(), int(c.expected)) << c.name;
+  }
+}
+
+// Largest stable step, measured on the linear two-sphere oscillator: growth between two windows
+// of a long run (so transient growth of non-normal update matrices cancels), bisected.
+double measured_limit(Integrator<double>& integrator, double m, double k, double kd, double guess) {
+  auto unstable = [&](double h) {
+    SphereModel<double> model = two_spheres(m, k, kd);
+    model.positions()(1, 0) += 1e-5;
+    ForceModel<double> forces = no_gravity(model);
+    integrator.prepare(model);
+    const int n = 20000, w = 2000;
+    double early = 0, late = 0, window = 0;
+    for (int s = 0; s < n; ++s) {
+      integrator.step(model, forces, h);
+      const double q = std::abs(gap(model, 0.01));
+      if (!std::isfinite(q) || q > 1e-3) return true;
+      if (s >= n / 2 - w && s < n / 2) early = std::max(early, q);
+      if (s >= n - w) late = std::max(late, q);
+      window = std::max(window, q);
+      if ((s + 1) % w == 0) {
+        // Decayed a million-fold: stable. (Going on would reach the rounding floor of q, a
+        // difference of 1 cm positions, where noise could pass for growth.)
+        if (window < 1e-11) return false;
+        window = 0;
+      }
+    }
+    return late > early * 1.01;  // 1 %: above the sampling jitter of a constant amplitude
+  };
+  double lo = 0.3 * guess, hi = 3 * guess;
+  EXPECT_FALSE(unstable(lo)) << integrator.name() << " kd " << kd;
+  EXPECT_TRUE(unstable(hi)) << integrator.name() << " kd " << kd;
+  for (int it = 0; it < 30; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (unstable(mid) ? hi : lo) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+TEST(Integrators, MeasuredStabilityLimitsMatchTheAnalyticBounds) {
+  const double m = 0.001, k = 500, w0 = 1000;
+  struct Case {
+    std::string name;
+    double zeta;
+  };
+  for (const Case& c : {Case{"symplectic_euler", 0.0}, Case{"symplectic_euler", 0.3},
+                        Case{"improved_euler", 0.1}, Case{"improved_euler", 0.8},
+                        Case{"heun", 0.1}, Case{"heun", 0.8}}) {
+    const double kd = c.zeta * w0 * m;
+    auto integrator = make_integrator<double>(c.name);
+    const double predicted = integrator->stable_time_step(spectral_bound(two_spheres(m, k, kd)));
+    ASSERT_GT(predicted, 0) << c.name;
+    const double measured = measured_limit(*integrator, m, k, kd, predicted);
+    // The issue asks for 5 %; the bounds are exact for this linear system, so hold them to 1 %.
+    EXPECT_TRUE(near(measured, predicted, 0.01)) << c.name << " zeta " << c.zeta;
+    RecordProperty(c.name + "_zeta_" + std::to_string(c.zeta) + "_measured_over_predicted",
+                   std::to_string(measured / predicted));
+  }
+  // Without damping Heun and improved Euler have no stable step: growth at a tiny step.
+  for (const std::string name : {"heun", "improved_euler"}) {
+    auto integrator = make_integrator<double>(name);
+    EXPECT_EQ(integrator->stable_time_step(spectral_bound(two_spheres(m, k, 0.0))), 0.0);
+    SphereModel<double> model = two_spheres(m, k, 0.0);
+    model.positions()(1, 0) += 1e-5;
+    ForceModel<double> forces = no_gravity(model);
+    integrator->prepare(model);
+    const double e0 = total_energy(model, forces);
+    for (int s = 0; s < 20000; ++s) integrator->step(model, forces, 0.2 / w0);
+    EXPECT_GT(total_energy(model, forces), e0 * 1.01) << name;
+  }
+}
+
+// Implicit Euler at 100x the symplectic limit on a lattice: finite, and the energy only falls.
+TYPED_TEST(IntegratorsTyped, ImplicitEulerStableAtHundredTimesTheExplicitLimit) {
+  using S = TypeParam;
+  std::mt19937 rng(41);
+  SphereModel<S> model = random_model<S>(rng, {4, 3, 3}, S(0.2), false, S(0));  // undamped
+  model.set_fixed(0);
+  model.set_fixed(1);
+  ForceModel<S> forces = no_gravity(model);
+  forces.refresh(model);
+  const S h = S(100) * symplectic_euler_limit(spectral_bound(model));
+  ImplicitEulerIntegrator<S> implicit;
+  implicit.prepare(model);
+  double e = double(total_energy(model, forces));
+  const double e0 = e;
+  for (int s = 0; s < 100; ++s) {
+    ASSERT_TRUE(implicit.step(model, forces, h).ok) << "step " << s;
+    ASSERT_TRUE(model.positions().allFinite());
+    const double en = double(total_energy(model, forces));
+    EXPECT_LE(en, e * (1 + 1e-4)) << "step " << s;
+    e = en;
+  }
+  EXPECT_LT(e, 0.5 * e0);
+}
+
+// Backward Euler never adds energy: step by step on nonlinear random models, with and without
+// damping, from small steps to far beyond the explicit limit. The tolerance is the CG residual.
+TEST(Integrators, ImplicitEulerEnergyNeverRises) {
+  std::mt19937 rng(43);
+  for (double eta : {0.0, 10.26}) {
+    for (double factor : {0.5, 5.0, 50.0}) {
+      SphereModel<double> model = random_model<double>(rng, {3, 3, 2}, 0.3, true, eta);
+      ForceModel<double> forces = no_gravity(model);
+      auto implicit = make<double>("implicit_euler", 1e-12);
+      implicit->prepare(model);
+      const double h = factor * symplectic_euler_limit(spectral_bound(model));
+      double e = total_energy(model, forces);
+      for (int s = 0; s < 200; ++s) {
+        ASSERT_TRUE(implicit->step(model, forces, h).ok);
+        const double en = total_energy(model, forces);
+        EXPECT_LE(en, e + 1e-9 * e) << "eta " << eta << " factor " << factor << " step " << s;
+        e = en;
+      }
+    }
+  }
+}
+
+// Symplectic Euler conserves the modified energy Q = v^2 + w^2 q^2 - h w^2 q v of a linear
+// oscillator exactly, at any stable step; so its energy never drifts.
+TEST(Integrators, SymplecticEulerConservesItsModifiedEnergy) {
+  const double m = 0.001, k = 500, w = 1000, l0 = 0.01;
+  SphereModel<double> model = two_spheres(m, k, 0.0, l0);
+  model.positions()(1, 0) += 1e-4;
+  ForceModel<double> forces = no_gravity(model);
+  SymplecticEulerIntegrator<double> se;
+  se.prepare(model);
+  const double h = 1.5 / w;
+  auto Q = [&] {
+    const double q = gap(model, l0), v = model.velocities()(1, 0) - model.velocities()(0, 0);
+    return v * v + w * w * q * q - h * w * w * q * v;
+  };
+  const double q0 = Q();
+  double worst = 0;
+  for (int s = 0; s < 100000; ++s) {
+    se.step(model, forces, h);
+    worst = std::max(worst, std::abs(Q() - q0));
+  }
+  EXPECT_LT(worst, 1e-9 * q0);
+}
+
+// On nonlinear random models: undamped, the energy of the last window is no higher than that of
+// the first (no secular drift); damped, the windowed maximum never rises.
+TEST(Integrators, SymplecticEulerEnergyDoesNotDriftOrRiseWithDamping) {
+  std::mt19937 rng(47);
+  for (double eta : {0.0, 10.26}) {
+    SphereModel<double> model = random_model<double>(rng, {3, 2, 2}, 0.3, false, eta);
+    ForceModel<double> forces = no_gravity(model);
+    SymplecticEulerIntegrator<double> se;
+    se.prepare(model);
+    const double h = 0.3 * symplectic_euler_limit(spectral_bound(model));
+    const int windows = 20, per = 2000;
+    std::vector<double> wmax(windows, 0);
+    for (int win = 0; win < windows; ++win)
+      for (int s = 0; s < per; ++s) {
+        se.step(model, forces, h);
+        wmax[std::size_t(win)] = std::max(wmax[std::size_t(win)], total_energy(model, forces));
+      }
+    if (eta == 0.0) {
+      EXPECT_LE(wmax.back(), wmax.front() * 1.02);
+    } else {
+      for (int win = 1; win < windows; ++win)
+        EXPECT_LE(wmax[std::size_t(win)], wmax[std::size_t(win - 1)] * (1 + 1e-12)) << "window " << win;
+      EXPECT_LT(wmax.back(), 0.5 * wmax.front());
+    }
+  }
+}
+
+// Momentum of a free model (no gravity, no fixed node) is conserved by every scheme; angular
+// momentum exactly by symplectic Euler with damping along the links (central forces), but not with
+// the paper's full relative-velocity damping.
+TYPED_TEST(IntegratorsTyped, MomentumIsConserved) {
+  using S = TypeParam;
+  const double tol = std::is_same_v<S, float> ? 1e-5 : 1e-11;
+  std::mt19937 rng(53);
+  for (const std::string name : {"improved_euler", "heun", "symplectic_euler", "implicit_euler"}) {
+    SphereModel<S> model = random_model<S>(rng, {3, 2, 2}, S(0.3), true);
+    ForceModel<S> forces = no_gravity(model);
+    auto integrator = make<S>(name, std::is_same_v<S, float> ? 1e-6 : 1e-13);
+    integrator->prepare(model);
+    const auto bound = spectral_bound(model);
+    const S h = S(0.2) * std::min({symplectic_euler_limit(bound), heun_limit(bound),
+                                   improved_euler_limit(bound)});
+    const Vector3<S> p0 = momentum(model);
+    const double scale = double((model.velocities().rowwise().norm().array() * model.masses().array()).sum());
+    for (int s = 0; s < 300; ++s) integrator->step(model, forces, h);
+    EXPECT_LT(double((momentum(model) - p0).norm()), tol * scale) << name;
+  }
+}
+
+TEST(Integrators, SymplecticEulerConservesAngularMomentumWithCentralDamping) {
+  std::mt19937 rng(59);
+  for (DampingModel dm : {DampingModel::along_link, DampingModel::full_relative_velocity}) {
+    SphereModel<double> model = random_model<double>(rng, {3, 2, 2}, 0.3, false, 30.0);
+    // Add a rigid spin about z so there is angular momentum to lose.
+    for (Index i = 0; i < model.num_nodes(); ++i) {
+      model.velocities()(i, 0) += -20 * model.positions()(i, 1);
+      model.velocities()(i, 1) += 20 * model.positions()(i, 0);
+    }
+    ForceModel<double> forces = no_gravity(model, dm);
+    SymplecticEulerIntegrator<double> se;
+    se.prepare(model);
+    const Vector3<double> L0 = angular_momentum(model);
+    const double h = 0.2 * symplectic_euler_limit(spectral_bound(model));
+    for (int s = 0; s < 2000; ++s) se.step(model, forces, h);
+    const double change = (angular_momentum(model) - L0).norm() / L0.norm();
+    if (dm == DampingModel::along_link)
+      EXPECT_LT(change, 1e-10);
+    else
+      EXPECT_GT(change, 1e-3);
+  }
+}
+
+TYPED_TEST(IntegratorsTyped, FixedNodesNeverMove) {
+  using S = TypeParam;
+  std::mt19937 rng(61);
+  for (const std::string name : {"improved_euler", "heun", "symplectic_euler", "implicit_euler"}) {
+    SphereModel<S> model = random_model<S>(rng, {3, 2, 2}, S(0.2));
+    for (Index i : {0, 3, 7}) model.set_fixed(i);
+    ForceModel<S> forces(model);  // with gravity
+    auto integrator = make_integrator<S>(name);
+    integrator->prepare(model);
+    const Positions<S> before = model.positions();
+    const S h = S(0.2) * std::min(symplectic_euler_limit(spectral_bound(model)),
+                                  improved_euler_limit(spectral_bound(model)));
+    for (int s = 0; s < 50; ++s) integrator->step(model, forces, h);
+    for (Index i : {0, 3, 7}) {
+      EXPECT_EQ(model.positions().row(i), before.row(i)) << name;
+      EXPECT_EQ(model.velocities().row(i).norm(), S(0)) << name;
+    }
+    EXPECT_GT(double((model.positions() - before).norm()), 0.0) << name;
+  }
+}
+
+TEST(Integrators, UnpreparedStepIsRefusedWithoutTouchingTheState) {
+  SphereModel<double> model = two_spheres(0.001, 500.0, 0.1);
+  ForceModel<double> forces = no_gravity(model);
+  for (const auto& name : integrator_names()) {
+    auto integrator = make_integrator<double>(name);
+    model.positions()(1, 0) = 0.0105;
+    const Positions<double> before = model.positions();
+    EXPECT_FALSE(integrator->step(model, forces, 1e-4).ok) << name;
+    EXPECT_EQ(model.positions(), before) << name;
+  }
+}
+
+TEST(Integrators, RegistryNamesAndErrors) {
+  for (const auto& name : integrator_names()) EXPECT_EQ(make_integrator<double>(name)->name(), name);
+  try {
+    (void)make_integrator<double>("runge_kutta");
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("runge_kutta"), std::string::npos);
+    for (const auto& name : integrator_names()) EXPECT_NE(what.find(name), std::string::npos);
+  }
+}
+
+// The direct solver agrees with matrix-free CG (default, definite form); LU runs the exact Jacobian.
+TEST(Integrators, ImplicitSolversAgree) {
+  std::mt19937 rng(67);
+  const SphereModel<double> start = random_model<double>(rng, {3, 2, 2}, 0.3, true);
+  const double h = 10 * symplectic_euler_limit(spectral_bound(start));
+  using IE = ImplicitEulerIntegrator<double>;
+  auto run = [&](IE::Solver solver, JacobianForm form, double step) {
+    SphereModel<double> model = start;
+    ForceModel<double> forces = no_gravity(model);
+    IE::Options o;
+    o.solver = solver;
+    o.jacobian = form;
+    o.tolerance = 1e-13;
+    o.max_iterations = 5000;
+    IE ie(o);
+    ie.prepare(model);
+    EXPECT_TRUE(ie.step(model, forces, step).ok);
+    return Positions<double>(model.velocities());
+  };
+  const auto cg = run(IE::Solver::conjugate_gradient, JacobianForm::definite, h);
+  const auto ldlt = run(IE::Solver::eigen_ldlt, JacobianForm::definite, h);
+  EXPECT_TRUE(matrices_near(cg, ldlt, 1e-9));
+  // The linearisations differ by terms of order h^2 (the non-symmetric damping term and the
+  // compressive transverse term): at a small step LU with the exact Jacobian agrees closely; at a
+  // large one it does not.
+  const double small = 0.01 * h;
+  const auto lu_small = run(IE::Solver::eigen_lu, JacobianForm::exact, small);
+  const auto ldlt_small = run(IE::Solver::eigen_ldlt, JacobianForm::definite, small);
+  const Positions<double> dv_lu = lu_small - start.velocities(), dv_ldlt = ldlt_small - start.velocities();
+  EXPECT_TRUE(matrices_near(dv_lu, dv_ldlt, 1e-3));
+  EXPECT_FALSE(matrices_near(dv_lu, dv_ldlt, 1e-9));
+}
+
+}  // namespace
+}  // namespace fsm::test
