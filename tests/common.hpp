@@ -18,11 +18,12 @@ namespace fsm::test {
 template <typename A, typename B>
 ::testing::AssertionResult near(A a, B b, double rel, double abs = 0.0) {
   const double x = double(a), y = double(b);
-  if (std::isnan(x) || std::isnan(y)) return ::testing::AssertionFailure() << "NaN: " << x << " vs " << y;
+  if (std::isnan(x) || std::isnan(y))
+    return ::testing::AssertionFailure() << "NaN: " << x << " vs " << y;
   const double tol = std::max(abs, rel * std::max(std::abs(x), std::abs(y)));
   if (std::abs(x - y) <= tol) return ::testing::AssertionSuccess();
-  return ::testing::AssertionFailure() << x << " vs " << y << " differ by " << std::abs(x - y)
-                                       << " > " << tol;
+  return ::testing::AssertionFailure()
+         << x << " vs " << y << " differ by " << std::abs(x - y) << " > " << tol;
 }
 
 /// Matrix comparison, entry by entry, relative to the larger matrix's max norm.
@@ -35,8 +36,10 @@ template <typename DA, typename DB>
   const double scale = std::max(double(a.cwiseAbs().maxCoeff()), double(b.cwiseAbs().maxCoeff()));
   const double err = double((a - b).cwiseAbs().maxCoeff());
   if (err <= rel * scale) return ::testing::AssertionSuccess();
-  return ::testing::AssertionFailure() << "max difference " << err << " > " << rel << " * "
-                                       << scale << "\n" << a << "\n---\n" << b;
+  return ::testing::AssertionFailure()
+         << "max difference " << err << " > " << rel << " * " << scale << "\n"
+         << a << "\n---\n"
+         << b;
 }
 
 template <typename Scalar>
@@ -120,8 +123,7 @@ template <typename Scalar>
 Vector3<Scalar> angular_momentum(const SphereModel<Scalar>& m) {
   Vector3<Scalar> L = Vector3<Scalar>::Zero();
   for (Index i = 0; i < m.num_nodes(); ++i)
-    L += m.masses()[i] *
-         m.positions().row(i).transpose().cross(m.velocities().row(i).transpose());
+    L += m.masses()[i] * m.positions().row(i).transpose().cross(m.velocities().row(i).transpose());
   return L;
 }
 

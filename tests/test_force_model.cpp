@@ -40,7 +40,8 @@ TYPED_TEST(ForceModelTyped, InternalForcesSumToZeroAndHaveNoTorque) {
       ASSERT_GT(scale, 0);
       EXPECT_LT(double(f.colwise().sum().norm()), tol * scale);
       const double lever = double(model.positions().cwiseAbs().maxCoeff());
-      EXPECT_LT(double(torque(Positions<S>(model.positions()), f).norm()), tol * scale * lever);  // central
+      EXPECT_LT(double(torque(Positions<S>(model.positions()), f).norm()),
+                tol * scale * lever);  // central
     }
   }
 }
@@ -56,9 +57,11 @@ TEST(ForceModel, FullRelativeVelocityDampingResistsRigidSpin) {
     model.velocities()(i, 1) = model.positions()(i, 0);
   }
   Positions<double> f(model.num_nodes(), 3);
-  no_gravity(model, DampingModel::along_link).evaluate(model, model.positions(), model.velocities(), f);
+  no_gravity(model, DampingModel::along_link)
+      .evaluate(model, model.positions(), model.velocities(), f);
   EXPECT_LT(f.norm(), 1e-12);  // rigid motion: no force along the links
-  no_gravity(model, DampingModel::full_relative_velocity).evaluate(model, model.positions(), model.velocities(), f);
+  no_gravity(model, DampingModel::full_relative_velocity)
+      .evaluate(model, model.positions(), model.velocities(), f);
   EXPECT_LT(f.colwise().sum().norm(), 1e-12 * f.cwiseAbs().sum());
   EXPECT_LT(torque(Positions<double>(model.positions()), f).z(), -1e-3 * f.cwiseAbs().sum() * 0.03);
 }
@@ -111,10 +114,12 @@ TEST(ForceModel, AssembledJacobiansMatchFiniteDifferences) {
     EXPECT_TRUE(matrices_near(D, Dfd, 1e-7));
     // The symmetric form is the symmetric part of the exact one when damping is along the link
     // (the dropped term is the non-symmetric n (P u)^T k_d / l).
-    const Eigen::MatrixXd Ks = Eigen::MatrixXd(forces.stiffness_matrix(model, JacobianForm::symmetric));
+    const Eigen::MatrixXd Ks =
+        Eigen::MatrixXd(forces.stiffness_matrix(model, JacobianForm::symmetric));
     EXPECT_TRUE(matrices_near(Ks, Ks.transpose().eval(), 1e-14));
     // The definite form makes -K positive semi-definite.
-    const Eigen::MatrixXd Kd = Eigen::MatrixXd(forces.stiffness_matrix(model, JacobianForm::definite));
+    const Eigen::MatrixXd Kd =
+        Eigen::MatrixXd(forces.stiffness_matrix(model, JacobianForm::definite));
     EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(-Kd).eigenvalues().minCoeff(),
               -1e-9 * Kd.cwiseAbs().maxCoeff());
   }
@@ -136,14 +141,17 @@ TEST(ForceModel, MatrixFreeImplicitOperatorMatchesAssembledMatrix) {
     Positions<double> rhs(n, 3), diag(n, 3), y(n, 3), p(n, 3);
     forces.prepare_implicit(model, h, JacobianForm::symmetric, blocks.data(), rhs, diag);
 
-    const Eigen::MatrixXd K = Eigen::MatrixXd(forces.stiffness_matrix(model, JacobianForm::symmetric));
+    const Eigen::MatrixXd K =
+        Eigen::MatrixXd(forces.stiffness_matrix(model, JacobianForm::symmetric));
     const Eigen::MatrixXd D = Eigen::MatrixXd(forces.damping_matrix(model));
     Eigen::MatrixXd A = -h * D - h * h * K;
-    for (Index i = 0; i < n; ++i) A.block<3, 3>(3 * i, 3 * i) += model.masses()[i] * Eigen::Matrix3d::Identity();
+    for (Index i = 0; i < n; ++i)
+      A.block<3, 3>(3 * i, 3 * i) += model.masses()[i] * Eigen::Matrix3d::Identity();
     Positions<double> F(n, 3);
     forces.evaluate(model, model.positions(), model.velocities(), F);
-    Eigen::VectorXd b = h * Eigen::Map<const Eigen::VectorXd>(F.data(), 3 * n) +
-                        h * h * K * Eigen::Map<const Eigen::VectorXd>(model.velocities().data(), 3 * n);
+    Eigen::VectorXd b =
+        h * Eigen::Map<const Eigen::VectorXd>(F.data(), 3 * n) +
+        h * h * K * Eigen::Map<const Eigen::VectorXd>(model.velocities().data(), 3 * n);
     std::uniform_real_distribution<double> u(-1, 1);
     for (Index i = 0; i < n; ++i)
       for (int c = 0; c < 3; ++c) p(i, c) = model.fixed()[i] ? 0.0 : u(rng);
@@ -183,7 +191,8 @@ TEST(ForceModel, EnergiesAreZeroAtRestAndPositiveWhenStrained) {
   EXPECT_TRUE(near(forces.elastic_energy(model, model.positions()), 0.5 * 100 * 1e-6, 1e-9));
   model.positions().col(2).array() -= 0.01;  // both sink 1 cm: lose 2 m g h, no strain change
   EXPECT_TRUE(near(forces.elastic_energy(model, model.positions()), 0.5 * 100 * 1e-6, 1e-9));
-  EXPECT_TRUE(near(forces.gravity_energy(model, model.positions()), -2 * 0.002 * 9.81 * 0.01, 1e-12));
+  EXPECT_TRUE(
+      near(forces.gravity_energy(model, model.positions()), -2 * 0.002 * 9.81 * 0.01, 1e-12));
 }
 
 }  // namespace

@@ -32,12 +32,14 @@ class IntegratorsTyped : public ::testing::Test {};
 using Scalars = ::testing::Types<float, double>;
 TYPED_TEST_SUITE(IntegratorsTyped, Scalars);
 
-// Heun at omega h = 0.01: its phase and amplitude errors per period are O((omega h)^2) ~ 1e-4,
-// so frequency and damping ratio must match to 1e-3 (float: 3e-3, rounding of 1e-2 m positions
-// moved by 1e-7 m per step).
+// Heun's relative frequency error is about (omega h)^2 / 6 and its amplitude error per period
+// 2 pi (omega h)^3 / 8. In double, omega h = 0.01 keeps both below 2e-5, so 1e-3 is a safe
+// tolerance. In float a step moves a 1 cm coordinate by a few hundred ulps, and the rounding of
+// each increment biases the decay; omega h = 0.05 (errors below 5e-4) with a 1 % tolerance.
 TYPED_TEST(IntegratorsTyped, TwoSphereOscillatorFrequencyAndDampingRatio) {
   using S = TypeParam;
-  const double tol = std::is_same_v<S, float> ? 3e-3 : 1e-3;
+  constexpr bool single = std::is_same_v<S, float>;
+  const double tol = single ? 1e-2 : 1e-3;
   const double m = 0.001, k = 500, w0 = std::sqrt(2 * k / m);  // 1000 rad/s
   for (double zeta : {0.02, 0.1}) {
     const double kd = zeta * w0 * m;  // c = 2 kd / m = 2 zeta w0
@@ -47,10 +49,11 @@ TYPED_TEST(IntegratorsTyped, TwoSphereOscillatorFrequencyAndDampingRatio) {
     ForceModel<S> forces = no_gravity(model);
     HeunIntegrator<S> heun;
     heun.prepare(model);
-    const double h = 0.01 / w0;
+    const double h = (single ? 0.05 : 0.01) / w0;
+    const int steps = int(6 * 2 * M_PI / (w0 * h));  // six periods
     std::vector<double> crossings, peaks;
     double q_prev2 = 0, q_prev = gap(model, l0), t = 0;
-    for (int s = 0; s < 6 * 628; ++s) {  // six periods
+    for (int s = 0; s < steps; ++s) {
       heun.step(model, forces, S(h));
       t += h;
       const double q = gap(model, l0);
@@ -69,7 +72,7 @@ TYPED_TEST(IntegratorsTyped, TwoSphereOscillatorFrequencyAndDampingRatio) {
     EXPECT_TRUE(near(wd, w0 * std::sqrt(1 - zeta * zeta), tol)) << "zeta " << zeta;
     const double delta = std::log(peaks.front() / peaks.back()) / double(peaks.size() - 1);
     const double zeta_measured = delta / std::sqrt(4 * M_PI * M_PI + delta * delta);
-    EXPECT_TRUE(near(zeta_measured, zeta, 10 * tol)) << "zeta " << zeta;
+    EXPECT_TRUE(near(zeta_measured, zeta, tol)) << "zeta " << zeta;
   }
 }
 
@@ -85,8 +88,8 @@ TEST(Integrators, ConvergenceOrderFromStepHalving) {
   for (const Case& c : {Case{"heun", 2}, Case{"symplectic_euler", 1}, Case{"improved_euler", 1},
                         Case{"implicit_euler", 1}}) {
     auto integrator = make<double>(c.name, 1e-13);
-    const double limit = std::min({symplectic_euler_limit(bound), heun_limit(bound),
-                                   improved_euler_limit(bound)});
+    const double limit =
+        std::min({symplectic_euler_limit(bound), heun_limit(bound), improved_euler_limit(bound)});
     const double T = 40 * limit, h0 = 0.1 * limit;
     std::vector<Positions<double>> finals;
     for (int level = 0; level < 3; ++level) {
@@ -147,9 +150,9 @@ TEST(Integrators, MeasuredStabilityLimitsMatchTheAnalyticBounds) {
     std::string name;
     double zeta;
   };
-  for (const Case& c : {Case{"symplectic_euler", 0.0}, Case{"symplectic_euler", 0.3},
-                        Case{"improved_euler", 0.1}, Case{"improved_euler", 0.8},
-                        Case{"heun", 0.1}, Case{"heun", 0.8}}) {
+  for (const Case& c :
+       {Case{"symplectic_euler", 0.0}, Case{"symplectic_euler", 0.3}, Case{"improved_euler", 0.1},
+        Case{"improved_euler", 0.8}, Case{"heun", 0.1}, Case{"heun", 0.8}}) {
     const double kd = c.zeta * w0 * m;
     auto integrator = make_integrator<double>(c.name);
     const double predicted = integrator->stable_time_step(spectral_bound(two_spheres(m, k, kd)));
@@ -264,7 +267,8 @@ TEST(Integrators, SymplecticEulerEnergyDoesNotDriftOrRiseWithDamping) {
       EXPECT_LE(wmax.back(), wmax.front() * 1.02);
     } else {
       for (int win = 1; win < windows; ++win)
-        EXPECT_LE(wmax[std::size_t(win)], wmax[std::size_t(win - 1)] * (1 + 1e-12)) << "window " << win;
+        EXPECT_LE(wmax[std::size_t(win)], wmax[std::size_t(win - 1)] * (1 + 1e-12))
+            << "window " << win;
       EXPECT_LT(wmax.back(), 0.5 * wmax.front());
     }
   }
@@ -286,7 +290,8 @@ TYPED_TEST(IntegratorsTyped, MomentumIsConserved) {
     const S h = S(0.2) * std::min({symplectic_euler_limit(bound), heun_limit(bound),
                                    improved_euler_limit(bound)});
     const Vector3<S> p0 = momentum(model);
-    const double scale = double((model.velocities().rowwise().norm().array() * model.masses().array()).sum());
+    const double scale =
+        double((model.velocities().rowwise().norm().array() * model.masses().array()).sum());
     for (int s = 0; s < 300; ++s) integrator->step(model, forces, h);
     EXPECT_LT(double((momentum(model) - p0).norm()), tol * scale) << name;
   }
@@ -349,7 +354,8 @@ TEST(Integrators, UnpreparedStepIsRefusedWithoutTouchingTheState) {
 }
 
 TEST(Integrators, RegistryNamesAndErrors) {
-  for (const auto& name : integrator_names()) EXPECT_EQ(make_integrator<double>(name)->name(), name);
+  for (const auto& name : integrator_names())
+    EXPECT_EQ(make_integrator<double>(name)->name(), name);
   try {
     (void)make_integrator<double>("runge_kutta");
     ADD_FAILURE() << "no error";
@@ -360,7 +366,8 @@ TEST(Integrators, RegistryNamesAndErrors) {
   }
 }
 
-// The direct solver agrees with matrix-free CG (default, definite form); LU runs the exact Jacobian.
+// The direct solver agrees with matrix-free CG (default, definite form); LU runs the exact
+// Jacobian.
 TEST(Integrators, ImplicitSolversAgree) {
   std::mt19937 rng(67);
   const SphereModel<double> start = random_model<double>(rng, {3, 2, 2}, 0.3, true);
@@ -388,7 +395,8 @@ TEST(Integrators, ImplicitSolversAgree) {
   const double small = 0.01 * h;
   const auto lu_small = run(IE::Solver::eigen_lu, JacobianForm::exact, small);
   const auto ldlt_small = run(IE::Solver::eigen_ldlt, JacobianForm::definite, small);
-  const Positions<double> dv_lu = lu_small - start.velocities(), dv_ldlt = ldlt_small - start.velocities();
+  const Positions<double> dv_lu = lu_small - start.velocities(),
+                          dv_ldlt = ldlt_small - start.velocities();
   EXPECT_TRUE(matrices_near(dv_lu, dv_ldlt, 1e-3));
   EXPECT_FALSE(matrices_near(dv_lu, dv_ldlt, 1e-9));
 }

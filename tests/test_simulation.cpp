@@ -72,8 +72,7 @@ TYPED_TEST(SimulationTyped, UnstableStepIsDetectedAndRolledBack) {
     }
     EXPECT_TRUE(diverged) << "check_energy " << check_energy;
     if (check_energy) {  // caught while the energy was still moderate
-      EXPECT_LT(double(sim.energy().total()),
-                10 * double(std::abs(sim.energy().budget())) + 1.0);
+      EXPECT_LT(double(sim.energy().total()), 10 * double(std::abs(sim.energy().budget())) + 1.0);
     }
   }
 }

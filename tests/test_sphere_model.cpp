@@ -47,10 +47,12 @@ TEST(SphereModel, BuildsStructureOfArrays) {
 
 TEST(SphereModel, BadNodesAreNamed) {
   SphereModel<double> m = small_model();
-  expect_error([&] { m.add_node(V3(0, 0, 0), -0.001, 0.001, 0); }, "node 3 (region 'body')", "radius");
+  expect_error([&] { m.add_node(V3(0, 0, 0), -0.001, 0.001, 0); }, "node 3 (region 'body')",
+               "radius");
   expect_error([&] { m.add_node(V3(0, 0, 0), 0.0, 0.001, 0); }, "node 3", "radius");
   expect_error([&] { m.add_node(V3(0, 0, 0), 0.001, 0.0, 0); }, "node 3", "mass");
-  expect_error([&] { m.add_node(V3(std::nan(""), 0, 0), 0.001, 0.001, 0); }, "node 3", "not finite");
+  expect_error([&] { m.add_node(V3(std::nan(""), 0, 0), 0.001, 0.001, 0); }, "node 3",
+               "not finite");
   expect_error([&] { m.add_node(V3(0, 0, 0), 0.001, 0.001, 4); }, "node 3", "region index 4");
   EXPECT_EQ(m.num_nodes(), 3);  // nothing half-added
   EXPECT_NO_THROW(m.validate());
@@ -63,9 +65,11 @@ TEST(SphereModel, BadLinksAreNamed) {
   expect_error([&] { m.add_link(0, 2, -10.0, 0.0); }, "link 1 (nodes 0-2)", "stiffness");
   expect_error([&] { m.add_link(0, 2, 0.0, 0.0); }, "link 1", "stiffness");
   expect_error([&] { m.add_link(0, 2, 10.0, -1.0); }, "link 1", "damping");
-  expect_error([&] { m.add_link(0, 2, VoigtLink<double>::linear(0.0, 10, 0)); }, "link 1", "rest length");
-  expect_error([&] { m.add_link(0, 2, VoigtLink<double>::bilinear(0.01, 10, 0, 50, std::nan(""))); },
-               "link 1", "switch strain");
+  expect_error([&] { m.add_link(0, 2, VoigtLink<double>::linear(0.0, 10, 0)); }, "link 1",
+               "rest length");
+  expect_error(
+      [&] { m.add_link(0, 2, VoigtLink<double>::bilinear(0.01, 10, 0, 50, std::nan(""))); },
+      "link 1", "switch strain");
   EXPECT_EQ(m.num_links(), 1);
   // A duplicate is caught by validate() (in either orientation).
   m.add_link(1, 0, 10.0, 0.0);
@@ -101,7 +105,8 @@ TEST(SphereModel, RegionsAreUniqueAndLookedUpByName) {
 TEST(SphereModel, SetLinkKeepsTheOldLawOnBadInput) {
   SphereModel<double> m = small_model();
   const auto before = m.link(0);
-  expect_error([&] { m.set_link(0, VoigtLink<double>::linear(0.01, -1, 0)); }, "link 0", "stiffness");
+  expect_error([&] { m.set_link(0, VoigtLink<double>::linear(0.01, -1, 0)); }, "link 0",
+               "stiffness");
   EXPECT_EQ(m.link(0).stiffness, before.stiffness);
   m.set_link(0, VoigtLink<double>::bilinear(0.01, 100, 0.1, 500, 0.05));
   EXPECT_TRUE(m.has_bilinear_links());

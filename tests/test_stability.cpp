@@ -36,7 +36,8 @@ TEST(SpectralBound, BoundsTheTrueHighestFrequencyOfRandomModels) {
     const ForceModel<double> forces = no_gravity(stiffest);
     const Index n = model.num_nodes();
     // Rest stiffness: -dF/dx at rest (no pre-stress, so all forms agree).
-    const Eigen::MatrixXd K = -Eigen::MatrixXd(forces.stiffness_matrix(stiffest, JacobianForm::exact));
+    const Eigen::MatrixXd K =
+        -Eigen::MatrixXd(forces.stiffness_matrix(stiffest, JacobianForm::exact));
     Eigen::VectorXd w(3 * n);
     for (Index i = 0; i < n; ++i)
       w.segment<3>(3 * i).setConstant(model.fixed()[i] ? 0.0 : 1.0 / std::sqrt(model.masses()[i]));
@@ -59,7 +60,8 @@ TEST(StabilityLimits, ClosedFormsAtKnownPoints) {
   EXPECT_TRUE(near(improved_euler_limit(SB::oscillator(1000, 1600)), 2.0 / 1600, 1e-14));
   // Heun on an overdamped real eigenvalue -a: |1 - ah + (ah)^2/2| <= 1 iff ah <= 2.
   const double c = 1e5, w = 10;  // eigenvalues ~ -c and -w^2/c
-  EXPECT_TRUE(near(heun_limit(SB::oscillator(w, c)), 2.0 / (c / 2 + std::sqrt(c * c / 4 - w * w)), 1e-6));
+  EXPECT_TRUE(
+      near(heun_limit(SB::oscillator(w, c)), 2.0 / (c / 2 + std::sqrt(c * c / 4 - w * w)), 1e-6));
 }
 
 }  // namespace

@@ -21,8 +21,9 @@ TEST(Lattice, FreudenthalBoxCountsAndOrientation) {
 
 TEST(Lattice, ShapeFilterKeepsCellsInsideAndDropsUnusedVertices) {
   const double r = 0.02;
-  const auto mesh = make_cube_lattice<double>(Vector3<double>(-r, -r, -r), {8, 8, 8}, 0.005,
-                                              [&](const Vector3<double>& c) { return c.norm() < r; });
+  const auto mesh =
+      make_cube_lattice<double>(Vector3<double>(-r, -r, -r), {8, 8, 8}, 0.005,
+                                [&](const Vector3<double>& c) { return c.norm() < r; });
   EXPECT_NO_THROW(mesh.validate("ball"));  // validate() rejects unused vertices
   // The kept cubes approximate the ball's volume.
   EXPECT_TRUE(near(mesh.volume(), 4.0 / 3.0 * M_PI * r * r * r, 0.15));
@@ -47,7 +48,8 @@ TEST(TetrahedralPart, OneNodePerVertexOneLinkPerEdgeExactMass) {
   // An interior axis edge is shared by 6 tetrahedra of volume h^3/6: k = E h^3 / h^2 = E h.
   double kmax = 0;
   for (Index l = 0; l < model.num_links(); ++l)
-    if (std::abs(model.rest_lengths()[l] - 0.01) < 1e-12) kmax = std::max(kmax, model.stiffness()[l]);
+    if (std::abs(model.rest_lengths()[l] - 0.01) < 1e-12)
+      kmax = std::max(kmax, model.stiffness()[l]);
   EXPECT_TRUE(near(kmax, mat.youngs_modulus * 0.01, 1e-12));
   EXPECT_NO_THROW(model.validate());
 }

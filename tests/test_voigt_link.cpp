@@ -41,7 +41,8 @@ TEST(VoigtLink, ForceIsAlongTheLinkForTheDefaultModel) {
   const auto law = VoigtLink<double>::linear(0.01, 150.0, 1.5);
   for (int k = 0; k < 100; ++k) {
     const V3 xi(u(rng), u(rng), u(rng)), xj = xi + 0.012 * V3(u(rng), u(rng), u(rng));
-    const V3 f = law.force(xi * 0.01, xj * 0.01, V3(u(rng), u(rng), u(rng)), V3(u(rng), u(rng), u(rng)));
+    const V3 f =
+        law.force(xi * 0.01, xj * 0.01, V3(u(rng), u(rng), u(rng)), V3(u(rng), u(rng), u(rng)));
     const V3 d = (xj - xi).normalized();
     EXPECT_LT(f.cross(d).norm(), 1e-12 * std::max(1.0, f.norm()));
   }
@@ -104,12 +105,15 @@ TEST_P(VoigtJacobian, MatchesFiniteDifferences) {
     for (int c = 0; c < 3; ++c) {
       V3 e = V3::Zero();
       e[c] = hx;
-      dx.col(c) = (law.force(xi, xj + e, vi, vj, model) - law.force(xi, xj - e, vi, vj, model)) / (2 * hx);
+      dx.col(c) =
+          (law.force(xi, xj + e, vi, vj, model) - law.force(xi, xj - e, vi, vj, model)) / (2 * hx);
       e[c] = hv;
-      dv.col(c) = (law.force(xi, xj, vi, vj + e, model) - law.force(xi, xj, vi, vj - e, model)) / (2 * hv);
+      dv.col(c) =
+          (law.force(xi, xj, vi, vj + e, model) - law.force(xi, xj, vi, vj - e, model)) / (2 * hv);
       // d/dx_i is the negative: the force depends on x_j - x_i only.
       e[c] = hx;
-      const V3 dxi = (law.force(xi + e, xj, vi, vj, model) - law.force(xi - e, xj, vi, vj, model)) / (2 * hx);
+      const V3 dxi =
+          (law.force(xi + e, xj, vi, vj, model) - law.force(xi - e, xj, vi, vj, model)) / (2 * hx);
       EXPECT_TRUE(matrices_near(dxi, (-J.dx.col(c)).eval(), 1e-5));
     }
     EXPECT_TRUE(matrices_near(J.dx, dx, 1e-5)) << "case " << k;

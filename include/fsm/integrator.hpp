@@ -17,8 +17,8 @@ namespace fsm {
 
 /// @brief What one integrator step reports.
 struct IntegratorResult {
-  bool ok{true};       ///< False when the scheme could not produce a state (solver breakdown).
-  int iterations{0};   ///< Linear-solver iterations (implicit schemes), else 0.
+  bool ok{true};      ///< False when the scheme could not produce a state (solver breakdown).
+  int iterations{0};  ///< Linear-solver iterations (implicit schemes), else 0.
 };
 
 /// @brief Base of the time-stepping schemes.
@@ -42,7 +42,8 @@ class Integrator {
   virtual IntegratorResult step(SphereModel<Scalar>& model, ForceModel<Scalar>& forces,
                                 Scalar dt) noexcept = 0;
   /// @brief Largest stable step (s) for the bounds (0: no step is stable; infinity: any is).
-  [[nodiscard]] virtual Scalar stable_time_step(const SpectralBound<Scalar>& bound) const noexcept = 0;
+  [[nodiscard]] virtual Scalar stable_time_step(
+      const SpectralBound<Scalar>& bound) const noexcept = 0;
 
  protected:
   Integrator() = default;

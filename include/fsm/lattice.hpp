@@ -50,8 +50,8 @@ TetrahedralMesh<Scalar> make_cube_lattice(const Vector3<Scalar>& origin,
             t[std::size_t(s + 1)] = vid(c[0], c[1], c[2]);
           }
           // Odd permutations give left-handed tetrahedra: swap two corners.
-          const bool odd = (p[0] == 0 && p[1] == 2) || (p[0] == 1 && p[1] == 0) ||
-                           (p[0] == 2 && p[1] == 1);
+          const bool odd =
+              (p[0] == 0 && p[1] == 2) || (p[0] == 1 && p[1] == 0) || (p[0] == 2 && p[1] == 1);
           if (odd) std::swap(t[2], t[3]);
           for (Index v : t) {
             tets.push_back(v);

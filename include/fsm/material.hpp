@@ -17,9 +17,9 @@ namespace fsm {
 /// \f$\sigma = E\varepsilon + \eta\dot\varepsilon\f$, optionally bilinear in \f$E\f$.
 template <typename Scalar>
 struct Material {
-  Scalar density{1000};         ///< \f$\rho\f$ (kg/m^3), > 0.
-  Scalar youngs_modulus{0};     ///< \f$E\f$ (Pa), > 0: the small-strain modulus.
-  Scalar viscosity{0};          ///< \f$\eta\f$ (Pa s), >= 0.
+  Scalar density{1000};      ///< \f$\rho\f$ (kg/m^3), > 0.
+  Scalar youngs_modulus{0};  ///< \f$E\f$ (Pa), > 0: the small-strain modulus.
+  Scalar viscosity{0};       ///< \f$\eta\f$ (Pa s), >= 0.
   /// \f$E_L\f$ (Pa): modulus beyond the switch strain; 0 means linear (no switch).
   Scalar large_strain_modulus{0};
   /// \f$\varepsilon_s\f$: |strain| where \f$E\f$ gives way to \f$E_L\f$; used when
@@ -37,7 +37,8 @@ struct Material {
     auto bad = [&](const char* field, Scalar value, const char* want) {
       throw Error("", what, std::string(field) + " = " + std::to_string(value) + " " + want);
     };
-    if (!(std::isfinite(density) && density > 0)) bad("density", density, "kg/m^3 must be positive");
+    if (!(std::isfinite(density) && density > 0))
+      bad("density", density, "kg/m^3 must be positive");
     if (!(std::isfinite(youngs_modulus) && youngs_modulus > 0))
       bad("youngs_modulus", youngs_modulus, "Pa must be positive");
     if (!(std::isfinite(viscosity) && viscosity >= 0))
@@ -51,7 +52,8 @@ struct Material {
 
 /// @brief Link constants for an edge of a tetrahedral mesh: Van Gelder's rule.
 ///
-/// \f[ k_s = \frac{E \sum_{T \ni e} V_T}{l_e^2}, \qquad k_d = \frac{\eta \sum_{T \ni e} V_T}{l_e^2},
+/// \f[ k_s = \frac{E \sum_{T \ni e} V_T}{l_e^2}, \qquad k_d = \frac{\eta \sum_{T \ni e}
+/// V_T}{l_e^2},
 ///     \qquad k_L = \frac{E_L \sum_{T \ni e} V_T}{l_e^2}, \f]
 /// the three-dimensional form of A. Van Gelder, "Approximate simulation of elastic membranes by
 /// triangulated spring meshes", Journal of Graphics Tools 3(2):21-42, 1998 (stiffness as element
@@ -75,7 +77,8 @@ template <typename Scalar>
                                        material.viscosity * g, material.large_strain_modulus * g,
                                        material.switch_strain);
   }
-  return VoigtLink<Scalar>::linear(rest_length, material.youngs_modulus * g, material.viscosity * g);
+  return VoigtLink<Scalar>::linear(rest_length, material.youngs_modulus * g,
+                                   material.viscosity * g);
 }
 
 /// @brief Link constants for a rod of cross-section A and length l (a sphere chain along an axis):
@@ -89,7 +92,8 @@ template <typename Scalar>
                                        material.viscosity * g, material.large_strain_modulus * g,
                                        material.switch_strain);
   }
-  return VoigtLink<Scalar>::linear(rest_length, material.youngs_modulus * g, material.viscosity * g);
+  return VoigtLink<Scalar>::linear(rest_length, material.youngs_modulus * g,
+                                   material.viscosity * g);
 }
 
 }  // namespace fsm

@@ -44,9 +44,9 @@ template <typename Scalar>
 struct EnergyReport {
   Scalar kinetic{0};
   Scalar elastic{0};
-  Scalar gravity{0};          ///< Relative to the rest configuration.
-  Scalar external_work{0};    ///< Work of the external forces since the reference was taken.
-  Scalar reference{0};        ///< Total energy when the reference was taken.
+  Scalar gravity{0};        ///< Relative to the rest configuration.
+  Scalar external_work{0};  ///< Work of the external forces since the reference was taken.
+  Scalar reference{0};      ///< Total energy when the reference was taken.
   [[nodiscard]] Scalar total() const noexcept { return kinetic + elastic + gravity; }
   /// The most energy the model may physically hold: reference + external work (damping only
   /// removes energy).

@@ -16,8 +16,8 @@ namespace fsm {
 /// @brief A named part of a model with its own material (the uterine body, an ovary, ...).
 template <typename Scalar>
 struct Region {
-  std::string name;             ///< Unique, non-empty.
-  Material<Scalar> material;    ///< Its Voigt material.
+  std::string name;           ///< Unique, non-empty.
+  Material<Scalar> material;  ///< Its Voigt material.
 };
 
 /// @brief Spheres (nodes) joined by Voigt links, grouped into regions; some nodes fixed.
@@ -75,7 +75,9 @@ class SphereModel {
   void reserve(Index nodes, Index links);
 
   [[nodiscard]] Index num_nodes() const noexcept { return static_cast<Index>(m_mass.size()); }
-  [[nodiscard]] Index num_links() const noexcept { return static_cast<Index>(m_rest_length.size()); }
+  [[nodiscard]] Index num_links() const noexcept {
+    return static_cast<Index>(m_rest_length.size());
+  }
   [[nodiscard]] Index num_regions() const noexcept { return static_cast<Index>(m_regions.size()); }
   [[nodiscard]] Index num_fixed() const noexcept;
 

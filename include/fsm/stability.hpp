@@ -55,7 +55,8 @@ template <typename Scalar>
   const Index n = model.num_nodes();
   // Per node: the upper triangle of S_i (xx, xy, xz, yy, yz, zz) for stiffness and damping, and
   // the off-diagonal sums.
-  Eigen::Matrix<double, Eigen::Dynamic, 6> ks = Eigen::Matrix<double, Eigen::Dynamic, 6>::Zero(n, 6);
+  Eigen::Matrix<double, Eigen::Dynamic, 6> ks =
+      Eigen::Matrix<double, Eigen::Dynamic, 6>::Zero(n, 6);
   Eigen::Matrix<double, Eigen::Dynamic, 6> kd = ks;
   Eigen::VectorXd ks_off = Eigen::VectorXd::Zero(n), kd_off = Eigen::VectorXd::Zero(n);
   const auto links = model.links();
@@ -121,18 +122,20 @@ template <typename Scalar>
 
 /// @brief Largest stable step of the paper's eq. 10: the update's determinant
 /// \f$1 - ch + \omega^2h^2/2\f$ must stay below 1 and the trace condition gives \f$ch < 2\f$, so
-/// \f$h < \min(2c/\omega^2, 2/c)\f$ per mode; over all modes \f$h < \min(2\tau_{min}, 2/c_{max})\f$.
-/// Zero without damping: the scheme then grows at every step size.
+/// \f$h < \min(2c/\omega^2, 2/c)\f$ per mode; over all modes \f$h < \min(2\tau_{min},
+/// 2/c_{max})\f$. Zero without damping: the scheme then grows at every step size.
 template <typename Scalar>
 [[nodiscard]] Scalar improved_euler_limit(const SpectralBound<Scalar>& b) noexcept {
-  if (!(b.damping_max > 0)) return b.omega_max > 0 ? Scalar(0) : std::numeric_limits<Scalar>::infinity();
+  if (!(b.damping_max > 0))
+    return b.omega_max > 0 ? Scalar(0) : std::numeric_limits<Scalar>::infinity();
   return std::min(2 * b.retardation_min, Scalar(2) / b.damping_max);
 }
 
 /// @brief Largest stable step of Heun's method (eq. 9, explicit RK2): the largest h with
 /// \f$|1 + h\lambda + (h\lambda)^2/2| \le 1\f$ for the top mode's eigenvalues
-/// \f$\lambda = -c/2 \pm \sqrt{c^2/4 - \omega^2}\f$, \f$c = \min(c_{max}, \tau_{min}\omega_{max}^2)\f$.
-/// Zero without damping (\f$|R(i\omega h)| = \sqrt{1 + (\omega h)^4/4} > 1\f$).
+/// \f$\lambda = -c/2 \pm \sqrt{c^2/4 - \omega^2}\f$, \f$c = \min(c_{max},
+/// \tau_{min}\omega_{max}^2)\f$. Zero without damping (\f$|R(i\omega h)| = \sqrt{1 + (\omega
+/// h)^4/4} > 1\f$).
 template <typename Scalar>
 [[nodiscard]] Scalar heun_limit(const SpectralBound<Scalar>& b) noexcept {
   const double w = double(b.omega_max);

@@ -60,8 +60,8 @@ extern template struct TetrahedralMesh<float>;
 extern template struct TetrahedralMesh<double>;
 extern template PartRange add_tetrahedral_part(SphereModel<float>&, const TetrahedralMesh<float>&,
                                                Index, float);
-extern template PartRange add_tetrahedral_part(SphereModel<double>&,
-                                               const TetrahedralMesh<double>&, Index, double);
+extern template PartRange add_tetrahedral_part(SphereModel<double>&, const TetrahedralMesh<double>&,
+                                               Index, double);
 
 }  // namespace fsm
 

@@ -85,9 +85,9 @@ struct VoigtLink {
   /// @brief Force (N) on sphere i; the force on sphere j is its negative.
   /// @param xi, xj positions (m); @param vi, vj velocities (m/s).
   /// Coincident spheres (l = 0) have no defined direction and get zero force.
-  [[nodiscard]] Vector3<Scalar> force(const Vector3<Scalar>& xi, const Vector3<Scalar>& xj,
-                                      const Vector3<Scalar>& vi, const Vector3<Scalar>& vj,
-                                      DampingModel model = DampingModel::along_link) const noexcept {
+  [[nodiscard]] Vector3<Scalar> force(
+      const Vector3<Scalar>& xi, const Vector3<Scalar>& xj, const Vector3<Scalar>& vi,
+      const Vector3<Scalar>& vj, DampingModel model = DampingModel::along_link) const noexcept {
     const Vector3<Scalar> d = xj - xi;
     const Vector3<Scalar> u = vj - vi;
     const Scalar l = d.norm();

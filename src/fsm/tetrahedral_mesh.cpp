@@ -5,6 +5,6 @@ template struct TetrahedralMesh<float>;
 template struct TetrahedralMesh<double>;
 template PartRange add_tetrahedral_part(SphereModel<float>&, const TetrahedralMesh<float>&, Index,
                                         float);
-template PartRange add_tetrahedral_part(SphereModel<double>&, const TetrahedralMesh<double>&,
-                                        Index, double);
+template PartRange add_tetrahedral_part(SphereModel<double>&, const TetrahedralMesh<double>&, Index,
+                                        double);
 }  // namespace fsm

@@ -18,7 +18,8 @@ int main() {
     if (!sim.step(1e-3).advanced()) return 1;
   const double sag = sim.model().positions().col(2).minCoeff() - 0.0;
   std::printf("fsm %s downstream: %d spheres, %d links, sag under gravity %.3g mm\n", fsm::version,
-              model.num_nodes(), model.num_links(), -1e3 * (sim.model().positions() - sim.model().rest_positions()).col(2).minCoeff());
+              model.num_nodes(), model.num_links(),
+              -1e3 * (sim.model().positions() - sim.model().rest_positions()).col(2).minCoeff());
   (void)sag;
   return (sim.model().positions() - sim.model().rest_positions()).col(2).minCoeff() < 0 ? 0 : 2;
 }

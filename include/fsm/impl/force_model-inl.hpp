@@ -26,37 +26,53 @@ struct LinkData {
   VoigtLink<Scalar> law(Index l) const noexcept { return {rest[l], ks[l], kd[l], kl[l], es[l]}; }
 };
 
-// Accumulates the Voigt forces of links [begin, end) into f (F_i += F, F_j -= F).
+// Accumulates the Voigt forces of links [begin, end) into f (F_i += F, F_j -= F). Links that
+// share their first node in a row (add_tetrahedral_part sorts them so) keep that node's state and
+// force in registers: the force of a run is stored once, which removes the store-to-load chain
+// through f[i] that otherwise serialises the loop. Unsorted links are still correct (runs of one).
 template <typename Scalar, bool Bilinear, DampingModel Damping>
 void accumulate_link_forces(const LinkData<Scalar>& L, const Scalar* x, const Scalar* v, Scalar* f,
                             Index begin, Index end) noexcept {
-  for (Index l = begin; l < end; ++l) {
-    const std::ptrdiff_t i = 3 * std::ptrdiff_t(L.ij[2 * l]);
-    const std::ptrdiff_t j = 3 * std::ptrdiff_t(L.ij[2 * l + 1]);
-    const Scalar dx = x[j] - x[i], dy = x[j + 1] - x[i + 1], dz = x[j + 2] - x[i + 2];
-    const Scalar len = std::sqrt(dx * dx + dy * dy + dz * dz);
-    const Scalar inv = len > Scalar(0) ? Scalar(1) / len : Scalar(0);
-    const Scalar nx = dx * inv, ny = dy * inv, nz = dz * inv;
-    const Scalar ux = v[j] - v[i], uy = v[j + 1] - v[i + 1], uz = v[j + 2] - v[i + 2];
-    const Scalar e = len - L.rest[l];
-    const Scalar fe = Bilinear ? L.law(l).elastic_force(e) : L.ks[l] * e;
-    Scalar Fx, Fy, Fz;
-    if constexpr (Damping == DampingModel::along_link) {
-      const Scalar s = fe + L.kd[l] * (ux * nx + uy * ny + uz * nz);
-      Fx = s * nx;
-      Fy = s * ny;
-      Fz = s * nz;
-    } else {
-      Fx = fe * nx + L.kd[l] * ux;
-      Fy = fe * ny + L.kd[l] * uy;
-      Fz = fe * nz + L.kd[l] * uz;
+  Index l = begin;
+  while (l < end) {
+    const Index node = L.ij[2 * l];
+    const std::ptrdiff_t i = 3 * std::ptrdiff_t(node);
+    const Scalar xi = x[i], yi = x[i + 1], zi = x[i + 2];
+    const Scalar vxi = v[i], vyi = v[i + 1], vzi = v[i + 2];
+    Scalar fx(0), fy(0), fz(0);
+    for (; l < end && L.ij[2 * l] == node; ++l) {
+      const std::ptrdiff_t j = 3 * std::ptrdiff_t(L.ij[2 * l + 1]);
+      const Scalar dx = x[j] - xi, dy = x[j + 1] - yi, dz = x[j + 2] - zi;
+      const Scalar l2 = dx * dx + dy * dy + dz * dz;
+      // One square root and one division give both 1/l and l = l^2 / l.
+      const Scalar inv = l2 > Scalar(0) ? Scalar(1) / std::sqrt(l2) : Scalar(0);
+      const Scalar len = l2 * inv;
+      const Scalar ux = v[j] - vxi, uy = v[j + 1] - vyi, uz = v[j + 2] - vzi;
+      const Scalar e = len - L.rest[l];
+      const Scalar fe = Bilinear ? L.law(l).elastic_force(e) : L.ks[l] * e;
+      Scalar Fx, Fy, Fz;
+      if constexpr (Damping == DampingModel::along_link) {
+        // s n with n = d / l: the scalar force times 1/l, applied to d.
+        const Scalar s = (fe + L.kd[l] * (ux * dx + uy * dy + uz * dz) * inv) * inv;
+        Fx = s * dx;
+        Fy = s * dy;
+        Fz = s * dz;
+      } else {
+        const Scalar s = fe * inv;
+        Fx = s * dx + L.kd[l] * ux;
+        Fy = s * dy + L.kd[l] * uy;
+        Fz = s * dz + L.kd[l] * uz;
+      }
+      fx += Fx;
+      fy += Fy;
+      fz += Fz;
+      f[j] -= Fx;
+      f[j + 1] -= Fy;
+      f[j + 2] -= Fz;
     }
-    f[i] += Fx;
-    f[i + 1] += Fy;
-    f[i + 2] += Fz;
-    f[j] -= Fx;
-    f[j + 1] -= Fy;
-    f[j + 2] -= Fz;
+    f[i] += fx;
+    f[i + 1] += fy;
+    f[i + 2] += fz;
   }
 }
 
@@ -362,11 +378,11 @@ typename ForceModel<Scalar>::SparseMatrix ForceModel<Scalar>::damping_matrix(
   trip.reserve(36 * std::size_t(model.num_links()));
   for (Index l = 0; l < model.num_links(); ++l) {
     const Index i = links(l, 0), j = links(l, 1);
-    const Matrix3<Scalar> D = model.link(l)
-                                  .jacobian(X.row(i).transpose(), X.row(j).transpose(),
-                                            V.row(i).transpose(), V.row(j).transpose(),
-                                            m_options.damping)
-                                  .dv;
+    const Matrix3<Scalar> D =
+        model.link(l)
+            .jacobian(X.row(i).transpose(), X.row(j).transpose(), V.row(i).transpose(),
+                      V.row(j).transpose(), m_options.damping)
+            .dv;
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c) {
         trip.emplace_back(3 * i + r, 3 * j + c, D(r, c));

@@ -9,11 +9,10 @@ namespace fsm {
 template <typename Scalar>
 void ImplicitEulerIntegrator<Scalar>::prepare(const SphereModel<Scalar>& model) {
   const Index n = model.num_nodes();
-  m_blocks.assign(std::size_t(ForceModel<Scalar>::implicit_block_size) *
-                      std::size_t(model.num_links()),
-                  Scalar(0));
-  for (Positions<Scalar>* w : {&m_rhs, &m_diag, &m_dv, &m_r, &m_z, &m_p, &m_q})
-    w->setZero(n, 3);
+  m_blocks.assign(
+      std::size_t(ForceModel<Scalar>::implicit_block_size) * std::size_t(model.num_links()),
+      Scalar(0));
+  for (Positions<Scalar>* w : {&m_rhs, &m_diag, &m_dv, &m_r, &m_z, &m_p, &m_q}) w->setZero(n, 3);
   m_last_dt = Scalar(0);
 }
 
@@ -22,8 +21,8 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::step(SphereModel<Scalar>& mode
                                                        ForceModel<Scalar>& forces,
                                                        Scalar dt) noexcept {
   if (!detail::prepared_for(model, m_dv) ||
-      m_blocks.size() != std::size_t(ForceModel<Scalar>::implicit_block_size) *
-                             std::size_t(model.num_links()))
+      m_blocks.size() !=
+          std::size_t(ForceModel<Scalar>::implicit_block_size) * std::size_t(model.num_links()))
     return {false, 0};
   if (m_options.solver == Solver::conjugate_gradient) return solve_cg(model, forces, dt);
   return solve_assembled(model, forces, dt);
@@ -97,7 +96,7 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_assembled(SphereModel<Sc
     using Vec = Eigen::Matrix<Scalar, Eigen::Dynamic, 1>;
     const Index n = model.num_nodes();
     const bool lu = m_options.solver == Solver::eigen_lu;
-    const JacobianForm form = lu ? JacobianForm::exact
+    const JacobianForm form = lu                                          ? JacobianForm::exact
                               : m_options.jacobian == JacobianForm::exact ? JacobianForm::symmetric
                                                                           : m_options.jacobian;
     const Sparse K = forces.stiffness_matrix(model, form);

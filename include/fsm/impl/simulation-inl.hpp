@@ -9,10 +9,14 @@ namespace fsm {
 
 inline const char* to_string(StepStatus status) noexcept {
   switch (status) {
-    case StepStatus::ok: return "ok";
-    case StepStatus::recovered: return "recovered";
-    case StepStatus::diverged: return "diverged";
-    case StepStatus::invalid_time_step: return "invalid_time_step";
+    case StepStatus::ok:
+      return "ok";
+    case StepStatus::recovered:
+      return "recovered";
+    case StepStatus::diverged:
+      return "diverged";
+    case StepStatus::invalid_time_step:
+      return "invalid_time_step";
   }
   return "unknown";
 }

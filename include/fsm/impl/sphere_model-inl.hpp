@@ -3,8 +3,8 @@
 // Definitions of SphereModel's members; included at the bottom of fsm/sphere_model.hpp.
 
 #include <algorithm>
-#include <cstdio>
 #include <cmath>
+#include <cstdio>
 #include <numeric>
 #include <unordered_set>
 
@@ -90,8 +90,9 @@ template <typename Scalar>
 Index SphereModel<Scalar>::add_link(Index i, Index j, Scalar stiffness, Scalar damping) {
   const Index n = num_nodes();
   if (i < 0 || i >= n || j < 0 || j >= n) {
-    throw Error("", "link " + std::to_string(num_links()) + " (nodes " + std::to_string(i) + "-" +
-                        std::to_string(j) + ")",
+    throw Error("",
+                "link " + std::to_string(num_links()) + " (nodes " + std::to_string(i) + "-" +
+                    std::to_string(j) + ")",
                 "node index out of range [0, " + std::to_string(n) + ")");
   }
   const Scalar l0 = (rest_positions().row(j) - rest_positions().row(i)).norm();
@@ -101,8 +102,8 @@ Index SphereModel<Scalar>::add_link(Index i, Index j, Scalar stiffness, Scalar d
 template <typename Scalar>
 void SphereModel<Scalar>::set_fixed(Index node, bool fixed_flag) {
   if (node < 0 || node >= num_nodes())
-    throw Error("", "node " + std::to_string(node), "index out of range [0, " +
-                                                        std::to_string(num_nodes()) + ")");
+    throw Error("", "node " + std::to_string(node),
+                "index out of range [0, " + std::to_string(num_nodes()) + ")");
   m_fixed[std::size_t(node)] = fixed_flag ? 1 : 0;
   if (fixed_flag) velocities().row(node).setZero();
 }
@@ -140,8 +141,7 @@ VoigtLink<Scalar> SphereModel<Scalar>::link(Index l) const {
 
 template <typename Scalar>
 void SphereModel<Scalar>::set_link(Index l, const VoigtLink<Scalar>& law) {
-  if (l < 0 || l >= num_links())
-    throw Error("", "link " + std::to_string(l), "index out of range");
+  if (l < 0 || l >= num_links()) throw Error("", "link " + std::to_string(l), "index out of range");
   const VoigtLink<Scalar> old = link(l);
   const auto k = std::size_t(l);
   auto assign = [&](const VoigtLink<Scalar>& v) {
@@ -173,8 +173,8 @@ Index SphereModel<Scalar>::region_index(const std::string& name) const {
     if (m_regions[r].name == name) return static_cast<Index>(r);
     names += (r ? ", '" : "'") + m_regions[r].name + "'";
   }
-  throw Error("", "region '" + name + "'", "no such region; the model has " +
-                                                (names.empty() ? std::string("none") : names));
+  throw Error("", "region '" + name + "'",
+              "no such region; the model has " + (names.empty() ? std::string("none") : names));
 }
 
 template <typename Scalar>
@@ -265,8 +265,7 @@ void SphereModel<Scalar>::validate() const {
   }
   for (Index i = 0; i < num_nodes(); ++i) {
     check_node(i);
-    if (m_fixed[std::size_t(i)] > 1)
-      throw Error("", describe_node(i), "fixed flag must be 0 or 1");
+    if (m_fixed[std::size_t(i)] > 1) throw Error("", describe_node(i), "fixed flag must be 0 or 1");
   }
   std::unordered_set<std::uint64_t> seen;
   seen.reserve(m_rest_length.size());
@@ -286,10 +285,9 @@ SphereModel<Other> SphereModel<Scalar>::cast() const {
   SphereModel<Other> out;
   for (const auto& r : m_regions) {
     const auto& m = r.material;
-    out.m_regions.push_back({r.name, Material<Other>{Other(m.density), Other(m.youngs_modulus),
-                                                     Other(m.viscosity),
-                                                     Other(m.large_strain_modulus),
-                                                     Other(m.switch_strain)}});
+    out.m_regions.push_back(
+        {r.name, Material<Other>{Other(m.density), Other(m.youngs_modulus), Other(m.viscosity),
+                                 Other(m.large_strain_modulus), Other(m.switch_strain)}});
   }
   auto conv = [](const std::vector<Scalar>& v) { return std::vector<Other>(v.begin(), v.end()); };
   out.m_position = conv(m_position);

@@ -27,8 +27,8 @@ void TetrahedralMesh<Scalar>::validate(const std::string& what) const {
                         ", out of range [0, " + std::to_string(nv) + ")");
       for (int d = 0; d < c; ++d)
         if (tetrahedra(t, d) == k)
-          throw Error("", what, "tetrahedron " + std::to_string(t) + " repeats vertex " +
-                                    std::to_string(k));
+          throw Error("", what,
+                      "tetrahedron " + std::to_string(t) + " repeats vertex " + std::to_string(k));
       used[std::size_t(k)] = 1;
     }
     Scalar edge(0);
@@ -53,8 +53,8 @@ PartRange add_tetrahedral_part(SphereModel<Scalar>& model, const TetrahedralMesh
   const std::string what = "region '" + reg.name + "'";
   mesh.validate(what);
   if (!(std::isfinite(radius) && radius > 0))
-    throw Error("", what, "sphere radius " + detail::format_number(double(radius)) +
-                              " m must be positive");
+    throw Error("", what,
+                "sphere radius " + detail::format_number(double(radius)) + " m must be positive");
 
   const Index nv = static_cast<Index>(mesh.vertices.rows());
   const Index nt = static_cast<Index>(mesh.tetrahedra.rows());

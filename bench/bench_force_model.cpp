@@ -1,0 +1,45 @@
+// Force evaluation: time per link for lattices of about 1e3 to 1e6 links, on 1 and 2 threads.
+
+#include "common.hpp"
+
+namespace fsm::bench {
+namespace {
+
+template <typename Scalar>
+void BM_ForceEvaluation(benchmark::State& state) {
+  const SphereModel<Scalar> model = lattice_model<Scalar>(int(state.range(0)), state.range(2) != 0);
+  typename ForceModel<Scalar>::Options o;
+  o.threads = int(state.range(1));
+  ForceModel<Scalar> forces(model, o);
+  Positions<Scalar> f(model.num_nodes(), 3);
+  forces.evaluate(model, model.positions(), model.velocities(), f);  // warm-up
+  for (auto _ : state) {
+    forces.evaluate(model, model.positions(), model.velocities(), f);
+    benchmark::DoNotOptimize(f.data());
+    benchmark::ClobberMemory();
+  }
+  state.counters["links"] = double(model.num_links());
+  per_link(state, double(model.num_links()));
+}
+
+void sizes(benchmark::internal::Benchmark* b) {
+  for (double links : {1e3, 1e4, 1e5, 1e6})
+    for (int threads : {1, 2})
+      for (int bilinear : {0, 1}) b->Args({cells_for_links(links), threads, bilinear});
+  b->ArgNames({"cells", "threads", "bilinear"})->UseRealTime()->MinWarmUpTime(0.05);
+}
+
+BENCHMARK_TEMPLATE(BM_ForceEvaluation, double)->Apply(sizes);
+BENCHMARK_TEMPLATE(BM_ForceEvaluation, float)->Apply(sizes);
+
+// Elastic energy pass (what the divergence check adds per step).
+void BM_ElasticEnergy(benchmark::State& state) {
+  const SphereModel<double> model = lattice_model<double>(int(state.range(0)));
+  const ForceModel<double> forces(model);
+  for (auto _ : state) benchmark::DoNotOptimize(forces.elastic_energy(model, model.positions()));
+  per_link(state, double(model.num_links()));
+}
+BENCHMARK(BM_ElasticEnergy)->Arg(cells_for_links(1e4))->Arg(cells_for_links(1e6))->ArgName("cells");
+
+}  // namespace
+}  // namespace fsm::bench

@@ -1,0 +1,98 @@
+// A full step per integrator (Simulation::step with divergence checks, and the bare integrator),
+// for lattices of about 1e3 to 1e6 links on 1 and 2 threads, and for a uterus-sized model.
+
+#include "common.hpp"
+
+namespace fsm::bench {
+namespace {
+
+// Step size: half the scheme's stable step for explicit schemes, 1 ms (the haptic period) for
+// implicit Euler.
+template <typename Scalar>
+Scalar step_for(const Simulation<Scalar>& sim) {
+  const Scalar s = sim.stable_time_step();
+  return std::isinf(double(s)) ? Scalar(1e-3) : Scalar(0.5) * s;
+}
+
+template <typename Scalar>
+void run_simulation(benchmark::State& state, SphereModel<Scalar> model, const std::string& name,
+                    int threads, bool check_energy) {
+  typename Simulation<Scalar>::Options o;
+  o.integrator = name;
+  o.forces.threads = threads;
+  o.divergence.check_energy = check_energy;
+  Simulation<Scalar> sim(std::move(model), o);
+  const Scalar dt = step_for(sim);
+  for (int s = 0; s < 3; ++s) sim.step(dt);  // warm-up
+  int iterations = 0, failures = 0;
+  for (auto _ : state) {
+    const auto r = sim.step(dt);
+    iterations += r.solver_iterations;
+    failures += !r.advanced();
+  }
+  state.counters["links"] = double(sim.model().num_links());
+  state.counters["dt_us"] = 1e6 * double(dt);
+  state.counters["cg_iters"] = benchmark::Counter(iterations, benchmark::Counter::kAvgIterations);
+  if (failures) state.SkipWithError("steps failed");
+  per_link(state, double(sim.model().num_links()));
+}
+
+template <typename Scalar>
+void BM_Step(benchmark::State& state, const std::string& name) {
+  run_simulation<Scalar>(state, lattice_model<Scalar>(int(state.range(0))), name,
+                         int(state.range(1)), true);
+}
+
+template <typename Scalar>
+void BM_StepUterusSized(benchmark::State& state, const std::string& name) {
+  run_simulation<Scalar>(state, uterus_sized_model<Scalar>(), name, int(state.range(0)),
+                         state.range(1) != 0);
+  state.counters["spheres"] = double(uterus_sized_model<Scalar>().num_nodes());
+}
+
+// The bare integrator: no rollback copy, no divergence check.
+template <typename Scalar>
+void BM_IntegratorOnly(benchmark::State& state, const std::string& name) {
+  SphereModel<Scalar> model = uterus_sized_model<Scalar>();
+  ForceModel<Scalar> forces(model);
+  auto integrator = make_integrator<Scalar>(name);
+  integrator->prepare(model);
+  const Scalar s = integrator->stable_time_step(spectral_bound(model));
+  const Scalar dt = std::isinf(double(s)) ? Scalar(1e-3) : Scalar(0.5) * s;
+  for (int i = 0; i < 3; ++i) integrator->step(model, forces, dt);
+  for (auto _ : state) benchmark::DoNotOptimize(integrator->step(model, forces, dt));
+  per_link(state, double(model.num_links()));
+}
+
+void sizes(benchmark::internal::Benchmark* b) {
+  for (double links : {1e3, 1e4, 1e5, 1e6})
+    for (int threads : {1, 2}) b->Args({cells_for_links(links), threads});
+  b->ArgNames({"cells", "threads"})->UseRealTime();
+}
+
+void uterus(benchmark::internal::Benchmark* b) {
+  b->Args({1, 1})->Args({2, 1})->Args({1, 0})->ArgNames({"threads", "energy_check"})->UseRealTime();
+}
+
+const bool registered = [] {
+  for (const std::string& name : integrator_names()) {
+    benchmark::RegisterBenchmark(("BM_Step<double>/" + name).c_str(), [name](benchmark::State& st) {
+      BM_Step<double>(st, name);
+    })->Apply(sizes);
+    benchmark::RegisterBenchmark(
+        ("BM_StepUterusSized<double>/" + name).c_str(),
+        [name](benchmark::State& st) { BM_StepUterusSized<double>(st, name); })
+        ->Apply(uterus);
+    benchmark::RegisterBenchmark(
+        ("BM_StepUterusSized<float>/" + name).c_str(),
+        [name](benchmark::State& st) { BM_StepUterusSized<float>(st, name); })
+        ->Apply(uterus);
+    benchmark::RegisterBenchmark(
+        ("BM_IntegratorOnly<double>/" + name).c_str(),
+        [name](benchmark::State& st) { BM_IntegratorOnly<double>(st, name); });
+  }
+  return true;
+}();
+
+}  // namespace
+}  // namespace fsm::bench

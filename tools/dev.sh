@@ -1,0 +1,73 @@
+#!/usr/bin/env bash
+# libfsm's one entry point for people and CI. On a fresh Debian 12 machine (as root, or with sudo)
+# it installs whatever is missing, configures, builds and runs.
+#
+#   tools/dev.sh demo [ARGS...]   the main job (ARGS go to the demo)
+#   tools/dev.sh test             every test: GoogleTest suite, packaging, benchmark smoke runs
+#   tools/dev.sh bench [ARGS...]  the benchmarks, full length (ARGS go to Google Benchmark)
+#   tools/dev.sh install-deps     only the install step
+#
+# Environment: FSM_BUILD_DIR (default build), FSM_BUILD_TYPE (default Release), FSM_JOBS.
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+
+# Every dependency is a Debian package (no network besides Debian's archive).
+PACKAGES=(
+  build-essential cmake ninja-build ccache pkg-config git
+  libeigen3-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+)
+
+install_deps() {
+  local missing=() p
+  for p in "${PACKAGES[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  done
+  [ ${#missing[@]} -eq 0 ] && return 0  # quiet when everything is present
+  echo "tools/dev.sh: installing ${missing[*]}" >&2
+  local sudo=()
+  [ "$(id -u)" -ne 0 ] && sudo=(sudo)
+  "${sudo[@]}" apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive "${sudo[@]}" apt-get install -y -qq --no-install-recommends \
+    "${missing[@]}" >/dev/null
+}
+
+BUILD_DIR=${FSM_BUILD_DIR:-build}
+BUILD_TYPE=${FSM_BUILD_TYPE:-Release}
+JOBS=${FSM_JOBS:-$(nproc)}
+
+build() {
+  local launcher=()
+  command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+  cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE="$BUILD_TYPE" "${launcher[@]}" >/dev/null
+  cmake --build "$BUILD_DIR" -j "$JOBS"
+}
+
+cmd=${1:-}
+[ $# -gt 0 ] && shift
+case "$cmd" in
+  demo)
+    install_deps
+    build
+    exec "$BUILD_DIR/examples/fsm-poke-block" "$@"
+    ;;
+  test)
+    install_deps
+    build
+    exec ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$JOBS"
+    ;;
+  bench)
+    install_deps
+    build
+    for b in "$BUILD_DIR"/bench/bench_*; do
+      [ -x "$b" ] && "$b" "$@"
+    done
+    ;;
+  install-deps)
+    install_deps
+    ;;
+  *)
+    sed -n '2,12p' "$0" >&2
+    exit 2
+    ;;
+esac
