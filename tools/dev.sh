@@ -5,6 +5,8 @@
 #   tools/dev.sh demo [ARGS...]   the main job (ARGS go to the demo)
 #   tools/dev.sh test             every test: GoogleTest suite, packaging, benchmark smoke runs
 #   tools/dev.sh bench [ARGS...]  the benchmarks, full length (ARGS go to Google Benchmark)
+#   tools/dev.sh charts           measure (benchmarks + integrator accuracy) into docs/data and
+#                                 draw docs/img/*.png; takes about 20 minutes
 #   tools/dev.sh install-deps     only the install step
 #
 # Environment: FSM_BUILD_DIR (default build), FSM_BUILD_TYPE (default Release), FSM_JOBS.
@@ -62,6 +64,18 @@ case "$cmd" in
     for b in "$BUILD_DIR"/bench/bench_*; do
       [ -x "$b" ] && "$b" "$@"
     done
+    ;;
+  charts)
+    install_deps
+    PACKAGES=(python3 python3-matplotlib)
+    install_deps
+    build
+    mkdir -p docs/data
+    for b in bench_force_model bench_integrators; do
+      "$BUILD_DIR/bench/$b" --benchmark_out="docs/data/$b.json" --benchmark_out_format=json
+    done
+    "$BUILD_DIR/bench/integrator_accuracy" --out docs/data/integrator_accuracy.csv
+    /usr/bin/python3 docs/charts.py
     ;;
   install-deps)
     install_deps

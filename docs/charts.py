@@ -1,0 +1,121 @@
+#!/usr/bin/python3
+"""Draws the charts of docs/benchmarks.md from the measurements in docs/data.
+
+    /usr/bin/python3 docs/charts.py        (tools/dev.sh charts measures, then calls this)
+
+Reads  docs/data/bench_force_model.json, docs/data/bench_integrators.json (Google Benchmark JSON)
+       docs/data/integrator_accuracy.csv
+Writes docs/img/force_per_link.png, docs/img/step_cost.png, docs/img/integrator_speed_accuracy.png
+"""
+import csv
+import json
+import os
+import re
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+DATA = os.path.join(HERE, "data")
+IMG = os.path.join(HERE, "img")
+COLORS = {"improved_euler": "tab:orange", "heun": "tab:red", "symplectic_euler": "tab:blue",
+          "implicit_euler": "tab:green"}
+
+
+def load(name):
+    with open(os.path.join(DATA, name)) as f:
+        return json.load(f)
+
+
+def per_link(b):
+    return b["per_link"] * 1e9  # the counter is seconds per link
+
+
+def force_chart():
+    data = load("bench_force_model.json")
+    series = {}
+    for b in data["benchmarks"]:
+        m = re.match(r"BM_ForceEvaluation<(\w+)>/cells:\d+/threads:(\d)/bilinear:(\d)", b["name"])
+        if not m or b.get("run_type") == "aggregate":
+            continue
+        scalar, threads, bilinear = m.groups()
+        if bilinear != "1":
+            continue
+        series.setdefault((scalar, threads), []).append((b["links"], per_link(b)))
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for (scalar, threads), pts in sorted(series.items()):
+        pts.sort()
+        ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o",
+                linestyle="-" if threads == "1" else "--",
+                label=f"{scalar}, {threads} thread{'s' if threads != '1' else ''}")
+    ax.axhline(5, color="grey", linewidth=0.8)
+    ax.text(1.2e3, 5.15, "target at 1e6 links, 2 cores: 5 ns", color="grey", fontsize=8)
+    ax.set_xscale("log")
+    ax.set_xlabel("links")
+    ax.set_ylabel("force evaluation, ns per link")
+    ax.set_ylim(bottom=0)
+    ax.set_title("Voigt link forces (bilinear tissue), " + data["context"].get("host_name", ""))
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(os.path.join(IMG, "force_per_link.png"), dpi=120)
+
+
+def step_chart():
+    data = load("bench_integrators.json")
+    series = {}
+    for b in data["benchmarks"]:
+        m = re.match(r"BM_Step<double>/(\w+)/cells:\d+/threads:(\d)", b["name"])
+        if not m or b.get("error_occurred"):
+            continue
+        name, threads = m.groups()
+        series.setdefault((name, threads), []).append((b["links"], b["real_time"] * 1e-3))
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for (name, threads), pts in sorted(series.items()):
+        pts.sort()
+        ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", color=COLORS[name],
+                linestyle="-" if threads == "1" else "--",
+                label=f"{name}, {threads} thread{'s' if threads != '1' else ''}")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("links")
+    ax.set_ylabel("Simulation::step, microseconds")
+    ax.set_title("One step with divergence checks (double)")
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(os.path.join(IMG, "step_cost.png"), dpi=120)
+
+
+def accuracy_chart():
+    rows = list(csv.DictReader(open(os.path.join(DATA, "integrator_accuracy.csv"))))
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for name in COLORS:
+        pts = [(float(r["cost_s_per_s"]), float(r["error_m"]) * 1e6, float(r["dt_s"]))
+               for r in rows if r["integrator"] == name and r["status"] == "ok"]
+        if not pts:
+            continue
+        ax.plot([p[0] for p in pts], [max(p[1], 1e-6) for p in pts], marker="o",
+                color=COLORS[name], label=name)
+        for c, e, dt in pts:
+            ax.annotate(f"{dt * 1e3:g}", (c, max(e, 1e-6)), fontsize=6, xytext=(3, 2),
+                        textcoords="offset points")
+    ax.axvline(1.0, color="grey", linewidth=0.8)
+    ax.text(1.05, 0.97, "real time", color="grey", fontsize=8, va="top",
+            transform=ax.get_xaxis_transform())
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("wall seconds per simulated second (1 thread)")
+    ax.set_ylabel("RMS position error vs Heun at 1 us (um)")
+    ax.set_title("Speed against accuracy: 726-sphere tissue sample, labels = dt (ms)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(os.path.join(IMG, "integrator_speed_accuracy.png"), dpi=120)
+
+
+if __name__ == "__main__":
+    os.makedirs(IMG, exist_ok=True)
+    force_chart()
+    step_chart()
+    accuracy_chart()
+    print("wrote", ", ".join(sorted(os.listdir(IMG))))
