@@ -89,9 +89,9 @@ int main(int argc, char** argv) {
       double error = 0;
       if (!r.diverged)
         for (std::size_t k = 0; k < r.samples.size(); ++k)
-          error = std::max(error, std::sqrt((r.samples[k] - reference.samples[k]).rowwise()
-                                                .squaredNorm()
-                                                .mean()));
+          error = std::max(
+              error,
+              std::sqrt((r.samples[k] - reference.samples[k]).rowwise().squaredNorm().mean()));
       const char* status = r.diverged ? "diverged" : "ok";
       std::printf("%-18s %10.3f %14.4g %18.4g %10s\n", name.c_str(), dt * 1e3, error * 1e6,
                   r.seconds * 1e3, status);
