@@ -18,6 +18,8 @@ PACKAGES=(
   build-essential cmake ninja-build ccache pkg-config git
   libeigen3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  python3 python3-dev pybind11-dev python3-numpy python3-pytest
+  python3-venv python3-pip python3-setuptools python3-wheel
 )
 
 install_deps() {
@@ -41,7 +43,9 @@ JOBS=${FSM_JOBS:-$(nproc)}
 build() {
   local launcher=()
   command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
-  cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE="$BUILD_TYPE" "${launcher[@]}" >/dev/null
+  # Debian's Python (where python3-numpy lives), whatever python3 comes first on PATH.
+  cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE="$BUILD_TYPE" \
+    -DPython_EXECUTABLE=/usr/bin/python3 "${launcher[@]}" >/dev/null
   cmake --build "$BUILD_DIR" -j "$JOBS"
 }
 

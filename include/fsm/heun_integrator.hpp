@@ -20,6 +20,9 @@ template <typename Scalar>
 class HeunIntegrator final : public Integrator<Scalar> {
  public:
   [[nodiscard]] std::string_view name() const noexcept override { return "heun"; }
+  [[nodiscard]] std::unique_ptr<Integrator<Scalar>> clone() const override {
+    return std::make_unique<HeunIntegrator>(*this);
+  }
   [[nodiscard]] int order() const noexcept override { return 2; }
   void prepare(const SphereModel<Scalar>& model) override {
     const Index n = model.num_nodes();

@@ -50,6 +50,9 @@ class ImplicitEulerIntegrator final : public Integrator<Scalar> {
   explicit ImplicitEulerIntegrator(const Options& options) : m_options(options) {}
 
   [[nodiscard]] std::string_view name() const noexcept override { return "implicit_euler"; }
+  [[nodiscard]] std::unique_ptr<Integrator<Scalar>> clone() const override {
+    return std::make_unique<ImplicitEulerIntegrator>(*this);
+  }
   [[nodiscard]] int order() const noexcept override { return 1; }
   [[nodiscard]] const Options& options() const noexcept { return m_options; }
   void set_options(const Options& options) { m_options = options; }

@@ -15,6 +15,9 @@ template <typename Scalar>
 class SymplecticEulerIntegrator final : public Integrator<Scalar> {
  public:
   [[nodiscard]] std::string_view name() const noexcept override { return "symplectic_euler"; }
+  [[nodiscard]] std::unique_ptr<Integrator<Scalar>> clone() const override {
+    return std::make_unique<SymplecticEulerIntegrator>(*this);
+  }
   [[nodiscard]] int order() const noexcept override { return 1; }
   void prepare(const SphereModel<Scalar>& model) override { m_force.resize(model.num_nodes(), 3); }
 

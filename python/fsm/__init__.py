@@ -1,0 +1,47 @@
+"""libfsm: filled-sphere soft-tissue simulation for surgical training.
+
+A thin package over the compiled extension ``fsm._fsm``. Units are SI throughout (m, kg, s, N,
+Pa). Arrays are numpy views of the C++ state (row-major, ``|V| x 3`` for positions).
+
+Quick start::
+
+    import fsm
+    tissue = fsm.Material(density=1050, youngs_modulus=13150, viscosity=10.26)
+    model = fsm.SphereModel()
+    region = model.add_region("sample", tissue)
+    fsm.add_tetrahedral_part(model, fsm.make_cube_lattice((0, 0, 0), (10, 10, 5), 0.002),
+                             region, 0.001)
+    sim = fsm.Simulation(model, integrator="implicit_euler")
+    sim.external_forces[42] = (0, 0, -0.05)
+    sim.step(1e-3)
+    print(sim.model.positions[42])
+"""
+
+from ._fsm import (  # noqa: F401
+    Error,
+    EnergyReport,
+    HeunIntegrator,
+    ImplicitEulerIntegrator,
+    ImprovedEulerIntegrator,
+    Integrator,
+    Material,
+    PartRange,
+    Region,
+    Simulation,
+    SpectralBound,
+    SphereModel,
+    StepReport,
+    SymplecticEulerIntegrator,
+    TetrahedralMesh,
+    VoigtLink,
+    __version__,
+    add_tetrahedral_part,
+    integrator_names,
+    make_cube_lattice,
+    make_integrator,
+    rod_link,
+    spectral_bound,
+    tetrahedral_link,
+)
+
+__all__ = [name for name in dir() if not name.startswith("_")]

@@ -1,0 +1,93 @@
+// Integrators, their registry and the stability bounds.
+
+#include "common.hpp"
+
+namespace fsm::python {
+
+void define_integrators(py::module_& m) {
+  using I = Integrator<Scalar>;
+  using SB = SpectralBound<Scalar>;
+  py::class_<SB>(m, "SpectralBound",
+                 R"(Bounds a model's stability depends on (SI: rad/s, 1/s, s).)")
+      .def(py::init([](Scalar omega, Scalar c) { return SB::oscillator(omega, c); }),
+           py::arg("omega"), py::arg("damping_rate"),
+           "The bound of one oscillator q'' = -omega^2 q - c q'.")
+      .def_readwrite("omega_max", &SB::omega_max)
+      .def_readwrite("damping_max", &SB::damping_max)
+      .def_readwrite("retardation_min", &SB::retardation_min);
+  m.def(
+      "spectral_bound",
+      [](const SphereModel<Scalar>& model, const std::string& damping) {
+        return spectral_bound(model, damping == "full_relative_velocity"
+                                         ? DampingModel::full_relative_velocity
+                                         : DampingModel::along_link);
+      },
+      py::arg("model"), py::arg("damping") = "along_link",
+      "Block-Gershgorin bounds on the highest eigenfrequency and damping rate at rest.");
+
+  py::class_<I>(m, "Integrator", R"(Base of the time-stepping schemes (step(model, forces, dt)).)")
+      .def_property_readonly("name", [](const I& i) { return std::string(i.name()); })
+      .def_property_readonly("order", &I::order)
+      .def("stable_time_step", &I::stable_time_step, py::arg("bound"),
+           "Largest stable step (s) for a SpectralBound; 0 = none, inf = any.")
+      .def("__repr__", [](const I& i) { return "<fsm." + std::string(i.name()) + " integrator>"; });
+  py::class_<ImprovedEulerIntegrator<Scalar>, I>(
+      m, "ImprovedEulerIntegrator",
+      "The paper's eq. 10: v+ = v + h a(x, v), x+ = x + h/2 (v + v+). First order.")
+      .def(py::init<>());
+  py::class_<HeunIntegrator<Scalar>, I>(
+      m, "HeunIntegrator", "Heun's method (eq. 9): explicit RK2, two force evaluations.")
+      .def(py::init<>());
+  py::class_<SymplecticEulerIntegrator<Scalar>, I>(
+      m, "SymplecticEulerIntegrator", "v+ = v + h a(x, v), x+ = x + h v+. First order.")
+      .def(py::init<>());
+
+  using IE = ImplicitEulerIntegrator<Scalar>;
+  py::class_<IE, I>(m, "ImplicitEulerIntegrator",
+                    R"(Linearised backward Euler (Baraff and Witkin 1998); stable at any step.
+
+solver: "conjugate_gradient" (matrix-free, allocation-free; default), "eigen_ldlt" or "eigen_lu"
+(assembled, exact; eigen_lu uses the exact non-symmetric Jacobian).
+jacobian: "definite" (default), "symmetric" or "exact".
+tolerance: CG relative residual; max_iterations: CG cap.)")
+      .def(py::init([](const std::string& solver, const std::string& jacobian, Scalar tolerance,
+                       int max_iterations) {
+             typename IE::Options o;
+             if (solver == "conjugate_gradient")
+               o.solver = IE::Solver::conjugate_gradient;
+             else if (solver == "eigen_ldlt")
+               o.solver = IE::Solver::eigen_ldlt;
+             else if (solver == "eigen_lu")
+               o.solver = IE::Solver::eigen_lu;
+             else
+               throw Error("", "solver '" + solver + "'",
+                           "unknown; valid: conjugate_gradient, eigen_ldlt, eigen_lu");
+             if (jacobian == "definite")
+               o.jacobian = JacobianForm::definite;
+             else if (jacobian == "symmetric")
+               o.jacobian = JacobianForm::symmetric;
+             else if (jacobian == "exact")
+               o.jacobian = JacobianForm::exact;
+             else
+               throw Error("", "jacobian '" + jacobian + "'",
+                           "unknown; valid: definite, symmetric, exact");
+             if (!(tolerance > 0) || max_iterations < 1)
+               throw Error("", "ImplicitEulerIntegrator",
+                           "tolerance and max_iterations must be positive");
+             o.tolerance = tolerance;
+             o.max_iterations = max_iterations;
+             return IE(o);
+           }),
+           py::arg("solver") = "conjugate_gradient", py::arg("jacobian") = "definite",
+           py::arg("tolerance") = 1e-6, py::arg("max_iterations") = 200)
+      .def_property_readonly("tolerance", [](const IE& ie) { return ie.options().tolerance; })
+      .def_property_readonly("max_iterations",
+                             [](const IE& ie) { return ie.options().max_iterations; });
+
+  m.def("integrator_names", &integrator_names, "Names accepted wherever an integrator is chosen.");
+  m.def(
+      "make_integrator", [](const std::string& name) { return make_integrator<Scalar>(name); },
+      py::arg("name"), "The integrator of that name; fsm.Error lists the valid names otherwise.");
+}
+
+}  // namespace fsm::python

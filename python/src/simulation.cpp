@@ -1,0 +1,124 @@
+// Simulation: stepping with divergence detection; the GIL is released while C++ steps.
+
+#include "common.hpp"
+
+namespace fsm::python {
+
+namespace {
+using Sim = Simulation<Scalar>;
+
+std::unique_ptr<Integrator<Scalar>> to_integrator(const py::object& spec) {
+  if (py::isinstance<py::str>(spec)) return make_integrator<Scalar>(spec.cast<std::string>());
+  if (py::isinstance<Integrator<Scalar>>(spec))
+    return spec.cast<const Integrator<Scalar>&>().clone();
+  throw Error(
+      "", "integrator", "must be a name (" + [] {
+        std::string s;
+        for (const auto& n : integrator_names()) s += (s.empty() ? "" : ", ") + n;
+        return s;
+      }() + ") or an fsm.Integrator");
+}
+
+DampingModel to_damping(const std::string& name) {
+  if (name == "along_link") return DampingModel::along_link;
+  if (name == "full_relative_velocity") return DampingModel::full_relative_velocity;
+  throw Error("", "damping '" + name + "'", "unknown; valid: along_link, full_relative_velocity");
+}
+}  // namespace
+
+void define_simulation(py::module_& m) {
+  using R = StepReport<Scalar>;
+  py::class_<R>(m, "StepReport", "What Simulation.step() reports.")
+      .def_property_readonly(
+          "status", [](const R& r) { return std::string(to_string(r.status)); },
+          "'ok', 'recovered', 'diverged' or 'invalid_time_step'")
+      .def_readonly("substeps", &R::substeps)
+      .def_readonly("solver_iterations", &R::solver_iterations)
+      .def_readonly("energy", &R::energy, "J after the step (nan when not checked)")
+      .def_property_readonly("advanced", &R::advanced)
+      .def("__repr__", [](const R& r) {
+        return "StepReport(status='" + std::string(to_string(r.status)) +
+               "', substeps=" + std::to_string(r.substeps) + ")";
+      });
+
+  using E = EnergyReport<Scalar>;
+  py::class_<E>(m, "EnergyReport", "Energy account in J.")
+      .def_readonly("kinetic", &E::kinetic)
+      .def_readonly("elastic", &E::elastic)
+      .def_readonly("gravity", &E::gravity)
+      .def_readonly("external_work", &E::external_work)
+      .def_readonly("reference", &E::reference)
+      .def_property_readonly("total", &E::total)
+      .def_property_readonly("budget", &E::budget);
+
+  py::class_<Sim>(m, "Simulation", R"(A SphereModel stepped in time, with divergence detection.
+
+Simulation(model, integrator="implicit_euler", gravity=(0, 0, -9.81), damping="along_link",
+           threads=1, check_energy=True, energy_tolerance=1.0, max_substep_halvings=0)
+
+The model is copied in; sim.model is the simulated one. integrator is a name from
+fsm.integrator_names() or an fsm.Integrator instance (copied). A diverging step is rolled back and
+reported, never left as NaN. Raises fsm.Error for a bad model or option.)")
+      .def(py::init([](const SphereModel<Scalar>& model, const py::object& integrator,
+                       const Vector3<Scalar>& gravity, const std::string& damping, int threads,
+                       bool check_energy, Scalar energy_tolerance, int max_substep_halvings) {
+             typename Sim::Options o;
+             o.forces.gravity = gravity;
+             o.forces.damping = to_damping(damping);
+             o.forces.threads = threads;
+             o.divergence.check_energy = check_energy;
+             o.divergence.energy_tolerance = energy_tolerance;
+             o.divergence.max_substep_halvings = max_substep_halvings;
+             return std::make_unique<Sim>(model, to_integrator(integrator), o);
+           }),
+           py::arg("model"), py::arg("integrator") = "implicit_euler",
+           py::arg("gravity") = Vector3<Scalar>(0, 0, -9.81), py::arg("damping") = "along_link",
+           py::arg("threads") = 1, py::arg("check_energy") = true,
+           py::arg("energy_tolerance") = 1.0, py::arg("max_substep_halvings") = 0)
+      .def("step", &Sim::step, py::arg("dt"), py::call_guard<py::gil_scoped_release>(),
+           "Advances by dt seconds; returns a StepReport. Never raises.")
+      .def(
+          "run",
+          [](Sim& sim, int steps, Scalar dt) {
+            int advanced = 0;
+            {
+              py::gil_scoped_release release;
+              for (int s = 0; s < steps; ++s) advanced += sim.step(dt).advanced();
+            }
+            return advanced;
+          },
+          py::arg("steps"), py::arg("dt"),
+          "Takes `steps` steps of dt seconds without the GIL; returns how many advanced.")
+      .def_property_readonly(
+          "model", [](Sim& sim) -> SphereModel<Scalar>& { return sim.model(); },
+          py::return_value_policy::reference_internal, "The simulated model (arrays are views).")
+      .def_property(
+          "external_forces",
+          [](py::object self) {
+            Sim& sim = self.cast<Sim&>();
+            auto f = sim.external_forces();
+            return view(f.data(), py::ssize_t(f.rows()), 3, self);
+          },
+          [](Sim& sim, const py::array_t<Scalar, py::array::c_style | py::array::forcecast>& v) {
+            assign_rows3(sim.external_forces(), v, "external_forces");
+          },
+          "|V| x 3 external force per node (N), a view; held until changed.")
+      .def("set_fixed", &Sim::set_fixed, py::arg("node"), py::arg("fixed") = true)
+      .def("refresh", &Sim::refresh,
+           "Re-validates and re-derives everything after editing model arrays in place.")
+      .def_property_readonly("integrator",
+                             [](Sim& sim) { return std::string(sim.integrator().name()); })
+      .def(
+          "set_integrator",
+          [](Sim& sim, const py::object& spec) { sim.set_integrator(to_integrator(spec)); },
+          py::arg("integrator"), "Swaps the scheme (a name or an fsm.Integrator).")
+      .def_property_readonly("stable_time_step", &Sim::stable_time_step,
+                             "The integrator's largest stable step for this model (s).")
+      .def_property_readonly("spectral_bound", &Sim::spectral_bound)
+      .def("energy", &Sim::energy, "The EnergyReport at the current state.")
+      .def("reset_energy_reference", &Sim::reset_energy_reference)
+      .def_property_readonly("time", &Sim::time, "Simulated seconds.")
+      .def("reset", &Sim::reset, "Back to rest, zero velocity and external force, time 0.");
+}
+
+}  // namespace fsm::python

@@ -1,0 +1,131 @@
+// SphereModel: structure-of-arrays data, seen from numpy as views (no copies).
+
+#include "common.hpp"
+
+namespace fsm::python {
+
+namespace {
+using Model = SphereModel<Scalar>;
+
+// A read-write property that is a numpy view of a |V| x 3 or |L| array of the model.
+template <typename Get>
+void rows3_property(py::class_<Model>& c, const char* name, Get get, const char* doc) {
+  c.def_property(
+      name,
+      [get](py::object self) {
+        Model& m = self.cast<Model&>();
+        auto a = get(m);
+        return view(a.data(), py::ssize_t(a.rows()), 3, self);
+      },
+      [get, name](Model& m,
+                  const py::array_t<Scalar, py::array::c_style | py::array::forcecast>& v) {
+        assign_rows3(get(m), v, name);
+      },
+      doc);
+}
+
+template <typename T, typename Get>
+void column_property(py::class_<Model>& c, const char* name, Get get, const char* doc) {
+  c.def_property(
+      name,
+      [get](py::object self) {
+        Model& m = self.cast<Model&>();
+        auto a = get(m);
+        return view<T>(a.data(), py::ssize_t(a.rows()), 0, self);
+      },
+      [get, name](Model& m, const py::array_t<T, py::array::c_style | py::array::forcecast>& v) {
+        auto a = get(m);
+        if (v.ndim() != 1 || v.shape(0) != py::ssize_t(a.rows()))
+          throw Error("", name,
+                      "has " + std::to_string(v.ndim()) + " dimensions and " +
+                          std::to_string(v.ndim() ? v.shape(0) : 0) +
+                          " entries, wanted a vector of " + std::to_string(a.rows()));
+        std::copy(v.data(), v.data() + a.rows(), a.data());
+      },
+      doc);
+}
+}  // namespace
+
+void define_sphere_model(py::module_& m) {
+  py::class_<Region<Scalar>>(m, "Region", "A named part of a model with its material.")
+      .def_readonly("name", &Region<Scalar>::name)
+      .def_readonly("material", &Region<Scalar>::material)
+      .def("__repr__", [](const Region<Scalar>& r) { return "Region('" + r.name + "')"; });
+
+  py::class_<Model> c(m, "SphereModel", R"(Spheres joined by Voigt links, grouped into regions.
+
+Node arrays (|V| rows): positions, velocities, rest_positions (|V| x 3, m and m/s), masses (kg),
+radii (m), node_regions, fixed (1 = fixed). Link arrays (|L| rows): links (|L| x 2 node indices),
+rest_lengths (m), stiffness (N/m), damping (N s/m), large_stiffness (N/m), switch_strain.
+
+Every array property is a numpy *view* of the model's memory: writing into it changes the model.
+Views are invalidated by add_node/add_link (take a fresh one after growing the model). After
+writing masses, fixed flags or link constants in place, call Simulation.refresh().)");
+  c.def(py::init<>())
+      .def("add_region", &Model::add_region, py::arg("name"), py::arg("material"),
+           "Adds a region; returns its index. Raises fsm.Error for a taken name or a bad material.")
+      .def("add_node", &Model::add_node, py::arg("rest_position"), py::arg("radius"),
+           py::arg("mass"), py::arg("region"), "Adds a node at rest (m, m, kg); returns its index.")
+      .def("add_link", py::overload_cast<Index, Index, Scalar, Scalar>(&Model::add_link),
+           py::arg("i"), py::arg("j"), py::arg("stiffness"), py::arg("damping") = 0.0,
+           "Adds a linear link whose rest length is the nodes' rest distance; returns its index.")
+      .def("add_link", py::overload_cast<Index, Index, const VoigtLink<Scalar>&>(&Model::add_link),
+           py::arg("i"), py::arg("j"), py::arg("law"), "Adds a link with a full VoigtLink law.")
+      .def("set_fixed", &Model::set_fixed, py::arg("node"), py::arg("fixed") = true)
+      .def_property_readonly("num_nodes", &Model::num_nodes)
+      .def_property_readonly("num_links", &Model::num_links)
+      .def_property_readonly("num_regions", &Model::num_regions)
+      .def_property_readonly("num_fixed", &Model::num_fixed)
+      .def_property_readonly("regions", &Model::regions)
+      .def("region_index", &Model::region_index, py::arg("name"))
+      .def("link", &Model::link, py::arg("index"), "Link l's VoigtLink (a copy).")
+      .def("set_link", &Model::set_link, py::arg("index"), py::arg("law"))
+      .def_property_readonly("has_bilinear_links", &Model::has_bilinear_links)
+      .def("reset_to_rest", &Model::reset_to_rest)
+      .def_property_readonly("total_mass", &Model::total_mass, "kg")
+      .def("distribute_region_mass", &Model::distribute_region_mass, py::arg("region"),
+           py::arg("volume"), "Gives every node of the region rho V / N (V in m^3).")
+      .def("validate", &Model::validate,
+           "Raises fsm.Error naming the first bad node, link or region.")
+      .def(
+          "copy", [](const Model& mm) { return Model(mm); }, "A deep copy.")
+      .def("__repr__", [](const Model& mm) {
+        return "SphereModel(" + std::to_string(mm.num_nodes()) + " spheres, " +
+               std::to_string(mm.num_links()) + " links, " + std::to_string(mm.num_regions()) +
+               " regions)";
+      });
+  rows3_property(
+      c, "positions", [](Model& mm) { return mm.positions(); }, "|V| x 3, m");
+  rows3_property(
+      c, "velocities", [](Model& mm) { return mm.velocities(); }, "|V| x 3, m/s");
+  rows3_property(
+      c, "rest_positions", [](Model& mm) { return mm.rest_positions(); }, "|V| x 3, m");
+  column_property<Scalar>(
+      c, "masses", [](Model& mm) { return mm.masses(); }, "|V|, kg");
+  column_property<Scalar>(
+      c, "radii", [](Model& mm) { return mm.radii(); }, "|V|, m");
+  column_property<Index>(
+      c, "node_regions", [](Model& mm) { return mm.node_regions(); }, "|V|");
+  column_property<std::uint8_t>(
+      c, "fixed", [](Model& mm) { return mm.fixed(); },
+      "|V|, 1 = fixed (use Simulation.set_fixed to keep velocities 0)");
+  column_property<Scalar>(
+      c, "rest_lengths", [](Model& mm) { return mm.rest_lengths(); }, "|L|, m");
+  column_property<Scalar>(
+      c, "stiffness", [](Model& mm) { return mm.stiffness(); }, "|L|, N/m");
+  column_property<Scalar>(
+      c, "damping", [](Model& mm) { return mm.damping(); }, "|L|, N s/m");
+  column_property<Scalar>(
+      c, "large_stiffness", [](Model& mm) { return mm.large_stiffness(); }, "|L|, N/m");
+  column_property<Scalar>(
+      c, "switch_strain", [](Model& mm) { return mm.switch_strain(); }, "|L|, inf = linear");
+  c.def_property_readonly(
+      "links",
+      [](py::object self) {
+        Model& mm = self.cast<Model&>();
+        return view<Index>(mm.links().data(), mm.num_links(), 2, self);
+      },
+      "|L| x 2 node indices (int32)");
+}
+
+}  // namespace fsm::python

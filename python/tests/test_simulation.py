@@ -1,0 +1,112 @@
+"""Simulation from Python: stepping, integrators by name or class, energy, errors, physics."""
+import math
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import fsm
+
+
+def test_round_trip_build_step_read_write(block):
+    sim = fsm.Simulation(block, integrator="implicit_euler")
+    top = int(np.argmax(sim.model.rest_positions[:, 2] + sim.model.rest_positions[:, 0]))
+    sim.external_forces[top] = (0.0, 0.0, -0.02)
+    reports = [sim.step(1e-3) for _ in range(200)]
+    assert all(r.status == "ok" for r in reports)
+    x = sim.model.positions
+    assert x[top, 2] < sim.model.rest_positions[top, 2]
+    # The fixed layer did not move, the input model (copied in) did not change.
+    fixed = sim.model.fixed.astype(bool)
+    assert np.array_equal(x[fixed], sim.model.rest_positions[fixed])
+    assert np.array_equal(block.positions, block.rest_positions)
+    # Writing state from Python, then stepping, continues from what was written.
+    sim.model.velocities[:] = 0.0
+    sim.model.positions[top] += (0, 0, 0.001)
+    assert sim.step(1e-3).advanced
+    e = sim.energy()
+    assert e.total <= e.budget * (1 + 1e-9)
+    assert math.isclose(sim.time, 0.201, rel_tol=1e-12)
+
+
+def test_integrators_by_name_and_by_class(block):
+    for name in fsm.integrator_names():
+        sim = fsm.Simulation(block, integrator=name)
+        assert sim.integrator == name
+    ie = fsm.ImplicitEulerIntegrator(solver="eigen_ldlt")
+    sim = fsm.Simulation(block, integrator=ie)
+    assert sim.integrator == "implicit_euler"
+    assert math.isinf(sim.stable_time_step)
+    sim.set_integrator(fsm.SymplecticEulerIntegrator())
+    assert 0 < sim.stable_time_step < 1e-3
+    with pytest.raises(fsm.Error, match="valid names: improved_euler, heun"):
+        fsm.Simulation(block, integrator="rk4")
+    with pytest.raises(fsm.Error, match="solver 'cholmod'"):
+        fsm.ImplicitEulerIntegrator(solver="cholmod")
+    with pytest.raises(fsm.Error, match="damping 'viscous'"):
+        fsm.Simulation(block, damping="viscous")
+
+
+def test_divergence_is_reported_and_rolled_back(block):
+    sim = fsm.Simulation(block, integrator="symplectic_euler", gravity=(0, 0, 0))
+    sim.model.velocities[:] = np.random.default_rng(1).normal(0, 0.05, (block.num_nodes, 3))
+    sim.model.velocities[sim.model.fixed.astype(bool)] = 0
+    dt = 5 * sim.stable_time_step
+    statuses = []
+    for _ in range(2000):
+        before = sim.model.positions.copy()
+        r = sim.step(dt)
+        statuses.append(r.status)
+        if r.status == "diverged":
+            assert np.array_equal(sim.model.positions, before)
+            break
+    assert "diverged" in statuses
+    assert np.all(np.isfinite(sim.model.positions))
+    assert sim.step(float("nan")).status == "invalid_time_step"
+
+
+def test_two_sphere_oscillator_frequency(tissue):
+    """q'' = -(2k/m) q: the period measured through the bindings matches 2 pi sqrt(m / 2k)."""
+    m, k = 0.001, 500.0
+    model = fsm.SphereModel()
+    r = model.add_region("pair", tissue)
+    model.add_node((0, 0, 0), 0.002, m, r)
+    model.add_node((0.01, 0, 0), 0.002, m, r)
+    model.add_link(0, 1, k, 0.0)
+    model.positions[1, 0] += 1e-4
+    sim = fsm.Simulation(model, integrator="symplectic_euler", gravity=(0, 0, 0))
+    h = 1e-5
+    q = []
+    for _ in range(2000):
+        sim.step(h)
+        q.append(sim.model.positions[1, 0] - sim.model.positions[0, 0] - 0.01)
+    q = np.array(q)
+    crossings = np.flatnonzero(np.sign(q[:-1]) != np.sign(q[1:]))
+    period = 2 * h * np.mean(np.diff(crossings))
+    assert period == pytest.approx(2 * math.pi * math.sqrt(m / (2 * k)), rel=5e-3)
+
+
+def test_run_releases_the_gil(block):
+    """A Python thread keeps running while run() steps in C++: it ticks inside run's window."""
+    sim = fsm.Simulation(block, integrator="implicit_euler")
+    ticks = []
+    stop = threading.Event()
+
+    def count():
+        while not stop.is_set():
+            ticks.append(time.perf_counter())
+
+    t = threading.Thread(target=count)
+    t.start()
+    try:
+        start = time.perf_counter()
+        assert sim.run(3000, 1e-3) == 3000
+        end = time.perf_counter()
+    finally:
+        stop.set()
+        t.join()
+    margin = 0.1 * (end - start)
+    inside = [x for x in ticks if start + margin < x < end - margin]
+    assert end - start > 0.05  # long enough for the thread to be scheduled many times
+    assert len(inside) > 100

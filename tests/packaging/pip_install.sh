@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# `pip install .` offline into a fresh venv over Debian's Python, then import and step.
+#   pip_install.sh SOURCE_DIR WORK_DIR
+set -euo pipefail
+src=$1
+work=$2
+rm -rf "$work"
+mkdir -p "$work"
+/usr/bin/python3 -m venv --system-site-packages "$work/venv"
+# A copy of the sources, so setuptools' scratch files never land in the checkout.
+mkdir -p "$work/src"
+tar -C "$src" --exclude="./build*" --exclude=./.git --exclude=./.venv -cf - . | tar -C "$work/src" -xf -
+"$work/venv/bin/pip" install --no-build-isolation --no-index --quiet "$work/src"
+cd "$work"
+"$work/venv/bin/python" - <<'PY'
+import fsm, numpy as np
+assert fsm.__file__.startswith(__import__("sys").prefix), fsm.__file__
+m = fsm.SphereModel()
+r = m.add_region("b", fsm.Material(density=1050, youngs_modulus=13150, viscosity=10.26))
+fsm.add_tetrahedral_part(m, fsm.make_cube_lattice((0, 0, 0), (3, 3, 3), 0.005), r, 0.0025)
+sim = fsm.Simulation(m)
+assert sim.step(1e-3).advanced
+print("pip-installed fsm", fsm.__version__, "from", fsm.__file__, "steps fine")
+PY
