@@ -112,11 +112,19 @@ TEST(ForceModel, AssembledJacobiansMatchFiniteDifferences) {
     }
     EXPECT_TRUE(matrices_near(K, Kfd, 1e-5));
     EXPECT_TRUE(matrices_near(D, Dfd, 1e-7));
-    // The symmetric form is the symmetric part of the exact one when damping is along the link
-    // (the dropped term is the non-symmetric n (P u)^T k_d / l).
+    // The symmetric form drops only the non-symmetric damping term k_d/l n (P u)^T: it is
+    // symmetric, and with the spheres at rest relative to each other (u = 0) it equals the
+    // finite-difference-checked exact form.
     const Eigen::MatrixXd Ks =
         Eigen::MatrixXd(forces.stiffness_matrix(model, JacobianForm::symmetric));
     EXPECT_TRUE(matrices_near(Ks, Ks.transpose().eval(), 1e-14));
+    {
+      SphereModel<double> still = model;
+      still.velocities().setZero();
+      EXPECT_TRUE(matrices_near(
+          Eigen::MatrixXd(forces.stiffness_matrix(still, JacobianForm::symmetric)),
+          Eigen::MatrixXd(forces.stiffness_matrix(still, JacobianForm::exact)), 1e-13));
+    }
     // The definite form makes -K positive semi-definite.
     const Eigen::MatrixXd Kd =
         Eigen::MatrixXd(forces.stiffness_matrix(model, JacobianForm::definite));

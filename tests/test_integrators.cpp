@@ -177,6 +177,62 @@ TEST(Integrators, MeasuredStabilityLimitsMatchTheAnalyticBounds) {
   }
 }
 
+// The estimated stable step of each explicit scheme is stable: every eigenvalue of the one-step
+// matrix of the linearised system has modulus <= 1, on random models with two materials of very
+// different retardation times (damping not proportional to stiffness) and on one material.
+TEST(Integrators, EstimatedStableStepsAreStableForMixedMaterials) {
+  std::mt19937 rng(83);
+  for (int trial = 0; trial < 6; ++trial) {
+    SphereModel<double> model = random_model<double>(rng, {2, 2, 2}, 0.3, false, 10.0);
+    model.reset_to_rest();
+    if (trial % 3 != 0) {  // make some links far more viscous: a second material
+      std::uniform_real_distribution<double> u(0, 1);
+      for (Index l = 0; l < model.num_links(); ++l)
+        if (u(rng) < 0.3) model.damping()[l] *= trial % 3 == 1 ? 300.0 : 3000.0;
+    }
+    for (Index i = 0; i < 4; ++i) model.set_fixed(i);
+    const ForceModel<double> forces = no_gravity(model);
+    // Linearised at rest: a = M^-1 (K x + D v) on the free degrees of freedom.
+    const Eigen::MatrixXd K = Eigen::MatrixXd(forces.stiffness_matrix(model, JacobianForm::exact));
+    const Eigen::MatrixXd D = Eigen::MatrixXd(forces.damping_matrix(model));
+    std::vector<int> dof;
+    for (Index i = 0; i < model.num_nodes(); ++i)
+      if (!model.fixed()[i])
+        for (int c = 0; c < 3; ++c) dof.push_back(3 * i + c);
+    const int n = int(dof.size());
+    Eigen::MatrixXd Ak(n, n), Ad(n, n);
+    for (int r = 0; r < n; ++r)
+      for (int c = 0; c < n; ++c) {
+        const double w = 1.0 / model.masses()[dof[std::size_t(r)] / 3];
+        Ak(r, c) = w * K(dof[std::size_t(r)], dof[std::size_t(c)]);
+        Ad(r, c) = w * D(dof[std::size_t(r)], dof[std::size_t(c)]);
+      }
+    const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(n, n);
+    const auto bound = spectral_bound(model);
+    for (const std::string name : {"symplectic_euler", "improved_euler", "heun"}) {
+      const double h = make_integrator<double>(name)->stable_time_step(bound);
+      ASSERT_GT(h, 0) << name;
+      // One-step matrices on z = (x, v).
+      Eigen::MatrixXd S(2 * n, 2 * n);
+      if (name == "symplectic_euler") {  // v+ = v + h a(x, v); x+ = x + h v+
+        const Eigen::MatrixXd Vx = h * Ak, Vv = I + h * Ad;
+        S << I + h * Vx, h * Vv, Vx, Vv;
+      } else if (name == "improved_euler") {  // v+ = v + h a; x+ = x + h/2 (v + v+)
+        const Eigen::MatrixXd Vx = h * Ak, Vv = I + h * Ad;
+        S << I + 0.5 * h * Vx, 0.5 * h * (I + Vv), Vx, Vv;
+      } else {  // Heun: z+ = (I + hJ + (hJ)^2 / 2) z with J = [0 I; Ak Ad]
+        Eigen::MatrixXd J(2 * n, 2 * n);
+        J << Eigen::MatrixXd::Zero(n, n), I, Ak, Ad;
+        const Eigen::MatrixXd hJ = h * J;
+        S = Eigen::MatrixXd::Identity(2 * n, 2 * n) + hJ + 0.5 * hJ * hJ;
+      }
+      const double rho =
+          Eigen::EigenSolver<Eigen::MatrixXd>(S, false).eigenvalues().cwiseAbs().maxCoeff();
+      EXPECT_LE(rho, 1 + 1e-9) << name << " trial " << trial << " h " << h;
+    }
+  }
+}
+
 // Implicit Euler at 100x the symplectic limit on a lattice: finite, and the energy only falls.
 TYPED_TEST(IntegratorsTyped, ImplicitEulerStableAtHundredTimesTheExplicitLimit) {
   using S = TypeParam;
@@ -339,6 +395,21 @@ TYPED_TEST(IntegratorsTyped, FixedNodesNeverMove) {
     }
     EXPECT_GT(double((model.positions() - before).norm()), 0.0) << name;
   }
+}
+
+// A non-finite force gives a failed step with the state untouched, not a stale solution.
+TEST(Integrators, ImplicitEulerRefusesNonFiniteForces) {
+  std::mt19937 rng(89);
+  SphereModel<double> model = random_model<double>(rng, {3, 3, 3}, 0.2);
+  ForceModel<double> forces = no_gravity(model);
+  ImplicitEulerIntegrator<double> ie;
+  ie.prepare(model);
+  ASSERT_TRUE(ie.step(model, forces, 1e-3).ok);  // a warm start now exists
+  const Positions<double> x = model.positions(), v = model.velocities();
+  forces.external_forces()(40, 2) = std::nan("");
+  EXPECT_FALSE(ie.step(model, forces, 1e-3).ok);
+  EXPECT_EQ(model.positions(), x);
+  EXPECT_EQ(model.velocities(), v);
 }
 
 TEST(Integrators, UnpreparedStepIsRefusedWithoutTouchingTheState) {

@@ -91,6 +91,10 @@ TEST(TetrahedralPart, BadMeshesAreRejectedAndTheModelKept) {
   expect_error(mesh, -0.001, "radius");
   TetrahedralMesh<double> empty;
   expect_error(empty, 0.003, "empty");
+  auto twice = mesh;
+  twice.tetrahedra.conservativeResize(2, 4);
+  twice.tetrahedra.row(1) << 3, 1, 2, 0;
+  expect_error(twice, 0.003, "repeats tetrahedron 0");
 }
 
 }  // namespace

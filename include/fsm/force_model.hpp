@@ -59,7 +59,8 @@ class ForceModel {
   void refresh(const SphereModel<Scalar>& model);
 
   [[nodiscard]] const Options& options() const noexcept { return m_options; }
-  /// @brief Changes the options (thread buffers are resized here, not in the step).
+  /// @brief Changes the options (thread buffers are resized here, not in the step); fsm::Error
+  /// for threads < 1 or non-finite gravity.
   void set_options(const Options& options);
 
   /// @brief External force per node (N), `|V| x 3`; added to every evaluation until changed.

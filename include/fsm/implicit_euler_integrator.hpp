@@ -60,6 +60,11 @@ class ImplicitEulerIntegrator final : public Integrator<Scalar> {
   void prepare(const SphereModel<Scalar>& model) override;
   IntegratorResult step(SphereModel<Scalar>& model, ForceModel<Scalar>& forces,
                         Scalar dt) noexcept override;
+  /// Drops the warm start (the next solve starts from zero).
+  void reset() noexcept override {
+    m_dv.setZero();
+    m_last_dt = Scalar(0);
+  }
   [[nodiscard]] Scalar stable_time_step(const SpectralBound<Scalar>&) const noexcept override {
     return std::numeric_limits<Scalar>::infinity();
   }

@@ -41,6 +41,8 @@ class Integrator {
   /// (and leaves the state alone) if it was not.
   virtual IntegratorResult step(SphereModel<Scalar>& model, ForceModel<Scalar>& forces,
                                 Scalar dt) noexcept = 0;
+  /// @brief Forgets state carried between steps (a warm start), e.g. after a rollback.
+  virtual void reset() noexcept {}
   /// @brief A copy with the same options (the workspace must be prepared again).
   [[nodiscard]] virtual std::unique_ptr<Integrator> clone() const = 0;
   /// @brief Largest stable step (s) for the bounds (0: no step is stable; infinity: any is).

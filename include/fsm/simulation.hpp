@@ -20,9 +20,14 @@ enum class StepStatus {
   recovered,          ///< Advanced by dt, but only after automatic sub-stepping.
   diverged,           ///< The step diverged and the state was rolled back to before it.
   invalid_time_step,  ///< dt was not positive and finite; nothing changed.
+  /// Nothing was stepped: an external force is not finite, the model changed size since
+  /// refresh(), or positions/velocities edited between steps are not finite (they were replaced
+  /// by the last good state).
+  invalid_input,
 };
 
-/// @brief Name of a StepStatus ("ok", "recovered", "diverged", "invalid_time_step").
+/// @brief Name of a StepStatus ("ok", "recovered", "diverged", "invalid_time_step",
+/// "invalid_input").
 [[nodiscard]] const char* to_string(StepStatus status) noexcept;
 
 /// @brief What Simulation::step() reports.
@@ -77,9 +82,10 @@ struct DivergencePolicy {
 /// the state before the step and the report says `diverged`. With sub-stepping enabled the step
 /// is first retried with smaller steps.
 ///
-/// Edits to positions or velocities between steps are allowed: the simulation notices them and
-/// takes a new energy reference. After editing masses, fixed flags or link constants in place,
-/// call refresh().
+/// Edits to positions or velocities between steps are allowed: the simulation notices them,
+/// checks them, sets fixed nodes' velocities back to zero (a fixed node moves only when its
+/// position is edited) and takes a new energy reference. After editing masses, fixed flags or link
+/// constants in place, or adding nodes or links, call refresh().
 template <typename Scalar>
 class Simulation {
  public:
@@ -152,6 +158,8 @@ class Simulation {
   ForceModel<Scalar> m_forces;
   std::unique_ptr<Integrator<Scalar>> m_integrator;
   SpectralBound<Scalar> m_bound;
+  std::vector<Index> m_fixed_nodes;
+  Index m_num_links{0};
   Positions<Scalar> m_saved_x, m_saved_v;
   Scalar m_energy_reference{0};
   Scalar m_external_work{0};

@@ -45,8 +45,8 @@ struct SpectralBound {
 /// \f$k_l/\sqrt{m_i m_j}\f$, so (Feingold and Varga's block Gershgorin theorem)
 /// \f[ \omega_{max}^2 \le \max_i \Big[\lambda_{max}(\mathbf{S}_i)/m_i +
 ///     \sum_{l\ni i,\,j\,\text{free}} k_l/\sqrt{m_i m_j}\Big], \f]
-/// with \f$k_l\f$ the larger of the link's two stiffnesses. The same with \f$k_d\f$ bounds the
-/// damping rate (blocks \f$k_d\mathbf{n}\mathbf{n}^T\f$ along the link, \f$k_d\mathbf{I}\f$ for
+/// with \f$k_l\f$ the larger of a bilinear link's two stiffnesses. The same with \f$k_d\f$ bounds
+/// the damping rate (blocks \f$k_d\mathbf{n}\mathbf{n}^T\f$ along the link, \f$k_d\mathbf{I}\f$ for
 /// full relative-velocity damping). Exact for two equal spheres; the geometric stiffness of
 /// pre-stressed links is not included.
 template <typename Scalar>
@@ -69,14 +69,19 @@ template <typename Scalar>
   double tau = std::numeric_limits<double>::infinity();
   for (Index l = 0; l < model.num_links(); ++l) {
     const Index i = links(l, 0), j = links(l, 1);
-    const double k = std::max(double(stiff[l]), double(large[l]));
+    const bool bilinear = std::isfinite(double(model.switch_strain()[l]));
+    const double k = bilinear ? std::max(double(stiff[l]), double(large[l])) : double(stiff[l]);
     const double c = double(damp[l]);
     tau = std::min(tau, c / k);
     const Eigen::Vector3d d = (x.row(j) - x.row(i)).template cast<double>().transpose();
-    const Eigen::Vector3d u = d.normalized();
-    const double nn[6] = {u.x() * u.x(), u.x() * u.y(), u.x() * u.z(),
-                          u.y() * u.y(), u.y() * u.z(), u.z() * u.z()};
     const double eye[6] = {1, 0, 0, 1, 0, 1};
+    double nn[6] = {1, 0, 0, 1, 0, 1};  // no rest direction: bound the block by k I
+    if (d.norm() > 0) {
+      const Eigen::Vector3d u = d / d.norm();
+      const double v[6] = {u.x() * u.x(), u.x() * u.y(), u.x() * u.z(),
+                           u.y() * u.y(), u.y() * u.z(), u.z() * u.z()};
+      std::copy(v, v + 6, nn);
+    }
     const double* dshape = damping == DampingModel::along_link ? nn : eye;
     const double cross = 1.0 / std::sqrt(double(mass[i]) * double(mass[j]));
     for (const auto& [a, b] : {std::pair{i, j}, std::pair{j, i}}) {
@@ -135,7 +140,10 @@ template <typename Scalar>
 /// \f$|1 + h\lambda + (h\lambda)^2/2| \le 1\f$ for the top mode's eigenvalues
 /// \f$\lambda = -c/2 \pm \sqrt{c^2/4 - \omega^2}\f$, \f$c = \min(c_{max},
 /// \tau_{min}\omega_{max}^2)\f$. Zero without damping (\f$|R(i\omega h)| = \sqrt{1 + (\omega
-/// h)^4/4} > 1\f$).
+/// h)^4/4} > 1\f$). A model whose links have different retardation times can also have a heavily
+/// damped mode with eigenvalue near \f$-c_{max}\f$, stable only for \f$h \le 2/c_{max}\f$ (the
+/// region's real interval): when \f$c_{max} > \tau_{min}\omega_{max}^2\f$ the result is the
+/// smaller of the two.
 template <typename Scalar>
 [[nodiscard]] Scalar heun_limit(const SpectralBound<Scalar>& b) noexcept {
   const double w = double(b.omega_max);
@@ -159,7 +167,11 @@ template <typename Scalar>
     const double mid = 0.5 * (lo + hi);
     (stable(mid) ? lo : hi) = mid;
   }
-  return Scalar(lo);
+  // With damping proportional to stiffness (one retardation time: c_max = tau w_max^2) the top
+  // mode decides. Otherwise a mode may be damped far more than it is stiff, with an eigenvalue
+  // near -c_max on the real axis, stable only for h <= 2 / c_max.
+  const bool proportional = double(b.damping_max) <= c * (1 + 1e-9);
+  return Scalar(proportional ? lo : std::min(lo, 2.0 / double(b.damping_max)));
 }
 
 }  // namespace fsm

@@ -32,7 +32,8 @@ struct TetrahedralMesh {
   }
   /// @brief Throws fsm::Error naming `what` and the bad element: an empty mesh, a non-finite
   /// vertex, an index out of range, a repeated vertex in a tetrahedron, a degenerate tetrahedron
-  /// (|V| below 1e-12 of the mean edge length cubed), a vertex used by no tetrahedron.
+  /// (|V| below 1e-12 of the mean edge length cubed), a vertex used by no tetrahedron, the same
+  /// tetrahedron twice.
   void validate(const std::string& what) const;
 };
 

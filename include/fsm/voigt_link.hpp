@@ -84,14 +84,17 @@ struct VoigtLink {
 
   /// @brief Force (N) on sphere i; the force on sphere j is its negative.
   /// @param xi, xj positions (m); @param vi, vj velocities (m/s).
-  /// Coincident spheres (l = 0) have no defined direction and get zero force.
+  /// Coincident spheres (l = 0) have no direction: no elastic force and no along-link damping;
+  /// full relative-velocity damping, which needs no direction, still acts.
   [[nodiscard]] Vector3<Scalar> force(
       const Vector3<Scalar>& xi, const Vector3<Scalar>& xj, const Vector3<Scalar>& vi,
       const Vector3<Scalar>& vj, DampingModel model = DampingModel::along_link) const noexcept {
     const Vector3<Scalar> d = xj - xi;
     const Vector3<Scalar> u = vj - vi;
     const Scalar l = d.norm();
-    if (!(l > Scalar(0))) return Vector3<Scalar>::Zero();
+    if (!(l > Scalar(0)))
+      return model == DampingModel::along_link ? Vector3<Scalar>::Zero()
+                                               : Vector3<Scalar>(damping * u);
     const Vector3<Scalar> n = d / l;
     if (model == DampingModel::along_link) {
       return (elastic_force(l - rest_length) + damping * u.dot(n)) * n;
@@ -125,7 +128,11 @@ struct VoigtLink {
     const Vector3<Scalar> d = xj - xi;
     const Vector3<Scalar> u = vj - vi;
     const Scalar l = d.norm();
-    if (!(l > Scalar(0))) return J;
+    if (!(l > Scalar(0))) {
+      if (model == DampingModel::full_relative_velocity)
+        J.dv = damping * Matrix3<Scalar>::Identity();
+      return J;
+    }
     const Vector3<Scalar> n = d / l;
     const Matrix3<Scalar> nn = n * n.transpose();
     const Matrix3<Scalar> P = Matrix3<Scalar>::Identity() - nn;

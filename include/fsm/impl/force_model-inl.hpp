@@ -117,8 +117,8 @@ void symmetric_stiffness(const LinkState<Scalar>& s, JacobianForm form, Scalar& 
 }  // namespace detail
 
 template <typename Scalar>
-ForceModel<Scalar>::ForceModel(const SphereModel<Scalar>& model, const Options& options)
-    : m_options(options) {
+ForceModel<Scalar>::ForceModel(const SphereModel<Scalar>& model, const Options& options) {
+  set_options(options);
   refresh(model);
 }
 
@@ -138,6 +138,9 @@ void ForceModel<Scalar>::refresh(const SphereModel<Scalar>& model) {
 
 template <typename Scalar>
 void ForceModel<Scalar>::set_options(const Options& options) {
+  if (options.threads < 1)
+    throw Error("", "threads", std::to_string(options.threads) + " must be at least 1");
+  if (!options.gravity.allFinite()) throw Error("", "gravity", "is not finite");
   m_options = options;
   resize_scratch();
 }

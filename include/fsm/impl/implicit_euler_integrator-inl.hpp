@@ -44,13 +44,17 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg(SphereModel<Scalar>& 
     if (fixed[i]) m_dv.row(i).setZero();
   if (!m_dv.allFinite()) m_dv.setZero();
 
+  const Scalar bnorm = m_rhs.norm();
+  if (!std::isfinite(bnorm)) {  // NaN or infinite forces: no solution to apply
+    reset();
+    return {false, 0};
+  }
   forces.apply_implicit(model, m_blocks.data(), m_dv, m_q);
   m_r = m_rhs - m_q;
-  const Scalar bnorm = m_rhs.norm();
   const Scalar target = m_options.tolerance * bnorm;
   int it = 0;
   bool ok = true;
-  if (m_r.norm() > target) {
+  if (!(m_r.norm() <= target)) {  // written so that a NaN residual goes into CG and fails there
     m_z = m_r.cwiseQuotient(m_diag);
     m_p = m_z;
     Scalar rz = m_r.cwiseProduct(m_z).sum();
@@ -73,8 +77,7 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg(SphereModel<Scalar>& 
     it = std::min(it, m_options.max_iterations);
   }
   if (!ok || !m_dv.allFinite()) {
-    m_dv.setZero();
-    m_last_dt = Scalar(0);
+    reset();
     return {false, it};
   }
   m_last_dt = dt;

@@ -2,6 +2,7 @@
 
 // Definitions of Simulation's members; included at the bottom of fsm/simulation.hpp.
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 
@@ -17,6 +18,8 @@ inline const char* to_string(StepStatus status) noexcept {
       return "diverged";
     case StepStatus::invalid_time_step:
       return "invalid_time_step";
+    case StepStatus::invalid_input:
+      return "invalid_input";
   }
   return "unknown";
 }
@@ -39,19 +42,22 @@ Simulation<Scalar>::Simulation(SphereModel<Scalar> model,
 template <typename Scalar>
 void Simulation<Scalar>::refresh() {
   m_model.validate();
-  if (m_options.forces.threads < 1)
-    throw Error("", "threads", std::to_string(m_options.forces.threads) + " must be at least 1");
-  if (!m_options.forces.gravity.allFinite()) throw Error("", "gravity", "is not finite");
   const auto& d = m_options.divergence;
   if (!(d.energy_tolerance >= 0) || !(d.energy_floor_strain >= 0) || d.max_substep_halvings < 0 ||
       d.max_substep_halvings > 20)
     throw Error("", "divergence policy",
                 "tolerances must be non-negative and max_substep_halvings in [0, 20]");
+  m_fixed_nodes.clear();
   for (Index i = 0; i < m_model.num_nodes(); ++i)
-    if (m_model.fixed()[i]) m_model.velocities().row(i).setZero();
+    if (m_model.fixed()[i]) {
+      m_model.velocities().row(i).setZero();
+      m_fixed_nodes.push_back(i);
+    }
+  m_num_links = m_model.num_links();
   m_forces.set_options(m_options.forces);
   m_forces.refresh(m_model);
   m_integrator->prepare(m_model);
+  m_integrator->reset();
   m_bound = fsm::spectral_bound(m_model, m_options.forces.damping);
   const auto k = m_model.stiffness();
   const auto l0 = m_model.rest_lengths();
@@ -91,6 +97,9 @@ void Simulation<Scalar>::set_force_options(const typename ForceModel<Scalar>::Op
 template <typename Scalar>
 void Simulation<Scalar>::set_fixed(Index node, bool fixed) {
   m_model.set_fixed(node, fixed);
+  m_fixed_nodes.erase(std::remove(m_fixed_nodes.begin(), m_fixed_nodes.end(), node),
+                      m_fixed_nodes.end());
+  if (fixed) m_fixed_nodes.push_back(node);
   m_forces.refresh(m_model);
   m_bound = fsm::spectral_bound(m_model, m_options.forces.damping);
   save_state();
@@ -126,6 +135,7 @@ template <typename Scalar>
 void Simulation<Scalar>::reset() noexcept {
   m_model.reset_to_rest();
   m_forces.clear_external_forces();
+  m_integrator->reset();
   m_time = Scalar(0);
   save_state();
   reset_energy_reference();
@@ -158,15 +168,26 @@ StepReport<Scalar> Simulation<Scalar>::step(Scalar dt) noexcept {
     return report;
   }
   const DivergencePolicy<Scalar>& policy = m_options.divergence;
-  // Between steps the caller may have moved nodes or changed velocities: that energy did not come
-  // through the external forces, so it starts a new reference.
-  if (!state_matches_saved()) {
-    save_state();
-    if (policy.check_energy) reset_energy_reference();
-  }
   auto x = m_model.positions();
   auto v = m_model.velocities();
   const auto ext = m_forces.external_forces();
+  if (m_model.num_nodes() != Index(m_saved_x.rows()) || m_model.num_links() != m_num_links ||
+      !ext.allFinite()) {
+    report.status = StepStatus::invalid_input;
+    return report;
+  }
+  // Between steps the caller may have moved nodes or changed velocities: check the edit, keep fixed
+  // nodes still, and start a new energy reference (that energy did not come through the forces).
+  if (!state_matches_saved()) {
+    if (!x.allFinite() || !v.allFinite()) {
+      restore_state();
+      report.status = StepStatus::invalid_input;
+      return report;
+    }
+    for (const Index i : m_fixed_nodes) v.row(i).setZero();
+    save_state();
+    if (policy.check_energy) reset_energy_reference();
+  }
   for (int level = 0; level <= policy.max_substep_halvings; ++level) {
     const int n = 1 << level;
     const Scalar h = dt / Scalar(n);
@@ -198,6 +219,7 @@ StepReport<Scalar> Simulation<Scalar>::step(Scalar dt) noexcept {
       return report;
     }
     restore_state();
+    m_integrator->reset();  // its warm start came from the rejected state
   }
   report.status = StepStatus::diverged;
   return report;

@@ -3,6 +3,7 @@
 // Definitions for fsm/tetrahedral_mesh.hpp.
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <tuple>
 #include <vector>
@@ -42,6 +43,19 @@ void TetrahedralMesh<Scalar>::validate(const std::string& what) const {
   for (Index i = 0; i < nv; ++i)
     if (!used[std::size_t(i)])
       throw Error("", what, "vertex " + std::to_string(i) + " belongs to no tetrahedron");
+  // The same four vertices twice would count that element's mass and stiffness twice.
+  std::vector<std::pair<std::array<Index, 4>, Index>> sorted(static_cast<std::size_t>(nt));
+  for (Index t = 0; t < nt; ++t) {
+    std::array<Index, 4> k{tetrahedra(t, 0), tetrahedra(t, 1), tetrahedra(t, 2), tetrahedra(t, 3)};
+    std::sort(k.begin(), k.end());
+    sorted[std::size_t(t)] = {k, t};
+  }
+  std::sort(sorted.begin(), sorted.end());
+  for (std::size_t k = 1; k < sorted.size(); ++k)
+    if (sorted[k].first == sorted[k - 1].first)
+      throw Error("", what,
+                  "tetrahedron " + std::to_string(sorted[k].second) + " repeats tetrahedron " +
+                      std::to_string(sorted[k - 1].second));
 }
 
 template <typename Scalar>
