@@ -11,6 +11,7 @@
 #include "fsm/integrator.hpp"
 #include "fsm/lattice.hpp"
 #include "fsm/material.hpp"
+#include "fsm/model_file.hpp"
 #include "fsm/simulation.hpp"
 #include "fsm/skinning.hpp"
 #include "fsm/sphere_model.hpp"

@@ -1,0 +1,164 @@
+// Axis filling: a sphere chain along the medial axis found by mesh contraction (CGAL's
+// mean-curvature-flow skeleton, a successor of Au et al. 2008).
+
+#include <CGAL/AABB_face_graph_triangle_primitive.h>
+#include <CGAL/AABB_traits.h>
+#include <CGAL/AABB_tree.h>
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Mean_curvature_flow_skeletonization.h>
+#include <CGAL/Surface_mesh.h>
+#include <CGAL/extract_mean_curvature_flow_skeleton.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include "fillings.hpp"
+#include "fsm/error.hpp"
+
+namespace fsm::build::detail {
+
+namespace {
+
+using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+using SurfaceMesh = CGAL::Surface_mesh<K::Point_3>;
+using Skeletonization = CGAL::Mean_curvature_flow_skeletonization<SurfaceMesh>;
+using Skeleton = Skeletonization::Skeleton;
+using Primitive = CGAL::AABB_face_graph_triangle_primitive<SurfaceMesh>;
+using Tree = CGAL::AABB_tree<CGAL::AABB_traits<K, Primitive>>;
+
+SurfaceMesh to_cgal(const TriangleMesh<double>& m) {
+  SurfaceMesh sm;
+  std::vector<SurfaceMesh::Vertex_index> v(std::size_t(m.num_vertices()));
+  for (Index i = 0; i < m.num_vertices(); ++i)
+    v[std::size_t(i)] =
+        sm.add_vertex(K::Point_3(m.vertices(i, 0), m.vertices(i, 1), m.vertices(i, 2)));
+  for (Index f = 0; f < m.num_faces(); ++f)
+    sm.add_face(v[std::size_t(m.faces(f, 0))], v[std::size_t(m.faces(f, 1))],
+                v[std::size_t(m.faces(f, 2))]);
+  return sm;
+}
+
+Eigen::Vector3d eig(const K::Point_3& p) {
+  return {p.x(), p.y(), p.z()};
+}
+
+}  // namespace
+
+AxisFilling fill_axis(const TriangleMesh<double>& surface, const AxisSpec& spec, double radius,
+                      const std::string& part) {
+  const std::string where = "part '" + part + "'";
+  const double spacing = spec.spacing > 0 ? spec.spacing : radius;
+  const double rmin = spec.radius_min > 0 ? spec.radius_min : 0.5 * radius;
+  const double rmax = spec.radius_max > 0 ? spec.radius_max : 2.0 * radius;
+  if (rmin > rmax) throw Error("", where, "axis radius_min exceeds radius_max");
+
+  SurfaceMesh sm = to_cgal(surface);
+  Skeleton skeleton;
+  try {
+    CGAL::extract_mean_curvature_flow_skeleton(sm, skeleton);
+  } catch (const std::exception& e) {
+    throw Error("", where, std::string("medial axis extraction failed: ") + e.what());
+  }
+  const auto nv = boost::num_vertices(skeleton);
+  if (nv == 0) throw Error("", where, "the medial axis is empty");
+
+  // Split the skeleton graph into branches: maximal paths whose inner vertices have degree 2.
+  std::vector<std::vector<std::size_t>> adjacency(nv);
+  for (auto [e, end] = boost::edges(skeleton); e != end; ++e) {
+    const std::size_t a = boost::source(*e, skeleton), b = boost::target(*e, skeleton);
+    if (a == b) continue;
+    adjacency[a].push_back(b);
+    adjacency[b].push_back(a);
+  }
+  std::vector<std::vector<std::size_t>> paths;
+  std::map<std::pair<std::size_t, std::size_t>, bool> used;
+  auto is_stop = [&](std::size_t v) { return adjacency[v].size() != 2; };
+  auto walk = [&](std::size_t from, std::size_t next) {
+    std::vector<std::size_t> path{from, next};
+    used[std::minmax(from, next)] = true;
+    std::size_t prev = from, cur = next;
+    while (!is_stop(cur)) {
+      const std::size_t nxt = adjacency[cur][0] == prev ? adjacency[cur][1] : adjacency[cur][0];
+      if (used[std::minmax(cur, nxt)]) break;  // a closed loop
+      used[std::minmax(cur, nxt)] = true;
+      path.push_back(nxt);
+      prev = cur;
+      cur = nxt;
+    }
+    return path;
+  };
+  for (std::size_t v = 0; v < nv; ++v)
+    if (is_stop(v))
+      for (std::size_t w : adjacency[v])
+        if (!used[std::minmax(v, w)]) paths.push_back(walk(v, w));
+  for (std::size_t v = 0; v < nv; ++v)  // loops without any stop vertex
+    for (std::size_t w : adjacency[v])
+      if (!used[std::minmax(v, w)]) paths.push_back(walk(v, w));
+
+  Tree tree(faces(sm).first, faces(sm).second, sm);
+  tree.accelerate_distance_queries();
+
+  AxisFilling out;
+  std::vector<Eigen::Vector3d> centres;
+  std::map<std::size_t, Index> stop_node;  // skeleton vertex (branch end) -> chain node
+  auto node_at = [&](const Eigen::Vector3d& p) {
+    centres.push_back(p);
+    return Index(centres.size() - 1);
+  };
+  auto end_node = [&](std::size_t v) {
+    auto it = stop_node.find(v);
+    if (it != stop_node.end()) return it->second;
+    return stop_node[v] = node_at(eig(skeleton[v].point));
+  };
+  if (paths.empty()) {  // a single skeleton vertex: one sphere
+    out.branches.push_back({node_at(eig(skeleton[0].point))});
+  }
+  for (const auto& path : paths) {
+    std::vector<Eigen::Vector3d> pts;
+    for (std::size_t v : path) pts.push_back(eig(skeleton[v].point));
+    std::vector<double> arc{0};
+    for (std::size_t i = 1; i < pts.size(); ++i)
+      arc.push_back(arc.back() + (pts[i] - pts[i - 1]).norm());
+    const double length = arc.back();
+    out.skeleton_length += length;
+    const int segments = std::max(1, int(std::lround(length / spacing)));
+    std::vector<Index> branch{end_node(path.front())};
+    std::size_t seg = 1;
+    for (int k = 1; k < segments; ++k) {
+      const double s = length * k / segments;
+      while (seg + 1 < arc.size() && arc[seg] < s) ++seg;
+      const double t = (s - arc[seg - 1]) / std::max(arc[seg] - arc[seg - 1], 1e-15);
+      branch.push_back(node_at((1 - t) * pts[seg - 1] + t * pts[seg]));
+    }
+    const Index last = end_node(path.back());
+    if (last != branch.front() || segments > 1) branch.push_back(last);
+    out.branches.push_back(branch);
+  }
+
+  out.centres.resize(Index(centres.size()), 3);
+  out.radii.resize(Index(centres.size()));
+  for (std::size_t i = 0; i < centres.size(); ++i) {
+    out.centres.row(Index(i)) = centres[i].transpose();
+    const double d = std::sqrt(CGAL::to_double(
+        tree.squared_distance(K::Point_3(centres[i].x(), centres[i].y(), centres[i].z()))));
+    out.radii[Index(i)] = std::clamp(d, rmin, rmax);
+  }
+  std::map<std::pair<Index, Index>, bool> linked;
+  for (const auto& b : out.branches) {
+    for (std::size_t i = 0; i + 1 < b.size(); ++i)
+      if (b[i] != b[i + 1] && !linked[std::minmax(b[i], b[i + 1])]) {
+        linked[std::minmax(b[i], b[i + 1])] = true;
+        out.chain_links.emplace_back(b[i], b[i + 1]);
+      }
+    if (spec.bending)
+      for (std::size_t i = 0; i + 2 < b.size(); ++i)
+        if (b[i] != b[i + 2] && !linked[std::minmax(b[i], b[i + 2])]) {
+          linked[std::minmax(b[i], b[i + 2])] = true;
+          out.bending_links.emplace_back(b[i], b[i + 2]);
+        }
+  }
+  return out;
+}
+
+}  // namespace fsm::build::detail
