@@ -71,9 +71,48 @@ AxisFilling fill_axis(const TriangleMesh<double>& surface, const AxisSpec& spec,
     adjacency[a].push_back(b);
     adjacency[b].push_back(a);
   }
+  Tree tree(faces(sm).first, faces(sm).second, sm);
+  tree.accelerate_distance_queries();
+
+  // Prune spurs: a terminal branch (from a leaf to a branch point) shorter than twice the radius
+  // is an artefact of contracting a cap (short tubes fork at their ends), not anatomy.
+  {
+    auto point = [&](std::size_t v) {
+      return Eigen::Vector3d(skeleton[v].point.x(), skeleton[v].point.y(), skeleton[v].point.z());
+    };
+    auto erase_edge = [&](std::size_t a, std::size_t b) {
+      auto& la = adjacency[a];
+      la.erase(std::remove(la.begin(), la.end(), b), la.end());
+      auto& lb = adjacency[b];
+      lb.erase(std::remove(lb.begin(), lb.end(), a), lb.end());
+    };
+    for (bool changed = true; changed;) {
+      changed = false;
+      for (std::size_t leaf = 0; leaf < nv; ++leaf) {
+        if (adjacency[leaf].size() != 1) continue;
+        std::vector<std::size_t> spur{leaf};
+        double length = 0;
+        std::size_t prev = leaf, cur = adjacency[leaf][0];
+        length += (point(cur) - point(prev)).norm();
+        while (adjacency[cur].size() == 2) {
+          const std::size_t nxt = adjacency[cur][0] == prev ? adjacency[cur][1] : adjacency[cur][0];
+          spur.push_back(cur);
+          length += (point(nxt) - point(cur)).norm();
+          prev = cur;
+          cur = nxt;
+        }
+        if (adjacency[cur].size() < 3 || length >= 2 * radius) continue;
+        spur.push_back(cur);
+        for (std::size_t k = 0; k + 1 < spur.size(); ++k) erase_edge(spur[k], spur[k + 1]);
+        changed = true;
+      }
+    }
+  }
   std::vector<std::vector<std::size_t>> paths;
   std::map<std::pair<std::size_t, std::size_t>, bool> used;
   auto is_stop = [&](std::size_t v) { return adjacency[v].size() != 2; };
+  // Vertices left without edges by the pruning are not part of the axis any more, unless the
+  // whole skeleton is one vertex.
   auto walk = [&](std::size_t from, std::size_t next) {
     std::vector<std::size_t> path{from, next};
     used[std::minmax(from, next)] = true;
@@ -89,15 +128,12 @@ AxisFilling fill_axis(const TriangleMesh<double>& surface, const AxisSpec& spec,
     return path;
   };
   for (std::size_t v = 0; v < nv; ++v)
-    if (is_stop(v))
+    if (is_stop(v) && !adjacency[v].empty())
       for (std::size_t w : adjacency[v])
         if (!used[std::minmax(v, w)]) paths.push_back(walk(v, w));
   for (std::size_t v = 0; v < nv; ++v)  // loops without any stop vertex
     for (std::size_t w : adjacency[v])
       if (!used[std::minmax(v, w)]) paths.push_back(walk(v, w));
-
-  Tree tree(faces(sm).first, faces(sm).second, sm);
-  tree.accelerate_distance_queries();
 
   AxisFilling out;
   std::vector<Eigen::Vector3d> centres;
@@ -106,24 +142,56 @@ AxisFilling fill_axis(const TriangleMesh<double>& surface, const AxisSpec& spec,
     centres.push_back(p);
     return Index(centres.size() - 1);
   };
-  auto end_node = [&](std::size_t v) {
+  auto end_node = [&](std::size_t v, const Eigen::Vector3d& p) {
     auto it = stop_node.find(v);
     if (it != stop_node.end()) return it->second;
-    return stop_node[v] = node_at(eig(skeleton[v].point));
+    return stop_node[v] = node_at(p);
   };
   if (paths.empty()) {  // a single skeleton vertex: one sphere
     out.branches.push_back({node_at(eig(skeleton[0].point))});
   }
+  // Contraction pulls a free end of the skeleton back from the cap. The medial axis of a rounded
+  // end reaches the point whose distance to the surface ahead equals its distance to the surface
+  // around: extend each free end along its tangent by (distance to the surface ahead) minus
+  // (distance to the surface), so the end sphere fills the cap.
+  auto distance_to_surface = [&](const Eigen::Vector3d& p) {
+    return std::sqrt(CGAL::to_double(tree.squared_distance(K::Point_3(p.x(), p.y(), p.z()))));
+  };
+  auto extend_end = [&](std::vector<Eigen::Vector3d>& pts, bool at_front) {
+    if (pts.size() < 2) return;
+    const Eigen::Vector3d end = at_front ? pts.front() : pts.back();
+    // Tangent over the last stretch of about two radii.
+    Eigen::Vector3d back = end;
+    double walked = 0;
+    for (std::size_t k = 1; k < pts.size() && walked < 2 * radius; ++k) {
+      const Eigen::Vector3d q = at_front ? pts[k] : pts[pts.size() - 1 - k];
+      walked += (q - back).norm();
+      back = q;
+    }
+    const Eigen::Vector3d dir = (end - back).normalized();
+    if (!dir.allFinite()) return;
+    const K::Ray_3 ray(K::Point_3(end.x(), end.y(), end.z()),
+                       K::Vector_3(dir.x(), dir.y(), dir.z()));
+    const auto hit = tree.first_intersection(ray);
+    if (!hit) return;
+    const K::Point_3* p = boost::get<K::Point_3>(&hit->first);
+    if (!p) return;
+    const double ahead = (eig(*p) - end).norm();
+    const double extension = ahead - distance_to_surface(end);
+    if (extension > 0) (at_front ? pts.front() : pts.back()) = end + extension * dir;
+  };
   for (const auto& path : paths) {
     std::vector<Eigen::Vector3d> pts;
     for (std::size_t v : path) pts.push_back(eig(skeleton[v].point));
+    if (adjacency[path.front()].size() == 1) extend_end(pts, true);
+    if (adjacency[path.back()].size() == 1) extend_end(pts, false);
     std::vector<double> arc{0};
     for (std::size_t i = 1; i < pts.size(); ++i)
       arc.push_back(arc.back() + (pts[i] - pts[i - 1]).norm());
     const double length = arc.back();
     out.skeleton_length += length;
     const int segments = std::max(1, int(std::lround(length / spacing)));
-    std::vector<Index> branch{end_node(path.front())};
+    std::vector<Index> branch{end_node(path.front(), pts.front())};
     std::size_t seg = 1;
     for (int k = 1; k < segments; ++k) {
       const double s = length * k / segments;
@@ -131,7 +199,7 @@ AxisFilling fill_axis(const TriangleMesh<double>& surface, const AxisSpec& spec,
       const double t = (s - arc[seg - 1]) / std::max(arc[seg] - arc[seg - 1], 1e-15);
       branch.push_back(node_at((1 - t) * pts[seg - 1] + t * pts[seg]));
     }
-    const Index last = end_node(path.back());
+    const Index last = end_node(path.back(), pts.back());
     if (last != branch.front() || segments > 1) branch.push_back(last);
     out.branches.push_back(branch);
   }
