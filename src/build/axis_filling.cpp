@@ -6,6 +6,7 @@
 #include <CGAL/AABB_tree.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Mean_curvature_flow_skeletonization.h>
+#include <CGAL/Random.h>
 #include <CGAL/Surface_mesh.h>
 #include <CGAL/extract_mean_curvature_flow_skeleton.h>
 
@@ -56,6 +57,7 @@ AxisFilling fill_axis(const TriangleMesh<double>& surface, const AxisSpec& spec,
   SurfaceMesh sm = to_cgal(surface);
   Skeleton skeleton;
   try {
+    CGAL::get_default_random() = CGAL::Random(0);  // the medial poles' Delaunay uses it
     CGAL::extract_mean_curvature_flow_skeleton(sm, skeleton);
   } catch (const std::exception& e) {
     throw Error("", where, std::string("medial axis extraction failed: ") + e.what());
@@ -183,6 +185,15 @@ AxisFilling fill_axis(const TriangleMesh<double>& surface, const AxisSpec& spec,
   for (const auto& path : paths) {
     std::vector<Eigen::Vector3d> pts;
     for (std::size_t v : path) pts.push_back(eig(skeleton[v].point));
+    // The contracted curve zig-zags at the scale of the surface mesh, which lengthens it by a few
+    // per cent and by a different amount from run to run (CGAL orders its edge collapses by
+    // descriptor address). Laplacian smoothing of the inner points, ends held, removes that.
+    for (int it = 0; it < 10 && pts.size() > 2; ++it) {
+      std::vector<Eigen::Vector3d> next = pts;
+      for (std::size_t i = 1; i + 1 < pts.size(); ++i)
+        next[i] = 0.5 * pts[i] + 0.25 * (pts[i - 1] + pts[i + 1]);
+      pts.swap(next);
+    }
     if (adjacency[path.front()].size() == 1) extend_end(pts, true);
     if (adjacency[path.back()].size() == 1) extend_end(pts, false);
     std::vector<double> arc{0};

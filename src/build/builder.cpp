@@ -418,9 +418,26 @@ TissueModel<double> HybridTopologyBuilder::build() {
     skin.rest.vertices.middleRows(v0, n) = pts;
     skin.rest.faces.middleRows(f0, faces.rows()) = faces.array() + v0;
     const auto sphere_pos = spheres.rest_positions().middleRows(part.first_node, part.num_nodes);
+    // Axis parts bind to their chains; tetrahedral parts barycentrically to their filling; the
+    // baselines barycentrically to a Delaunay tetrahedralisation of their sphere centres, or, with
+    // fewer than four non-coplanar spheres, each vertex to its nearest sphere by a rest offset
+    // (one-sphere chains: translation only).
+    std::vector<std::vector<Index>> branches;
+    TetrahedralMesh<double> local;
     if (part.topology == Topology::axis) {
-      const detail::ChainBinding cb = detail::bind_chain(Positions<double>(sphere_pos),
-                                                         out.axis.branches, part.first_node, pts);
+      branches = out.axis.branches;
+    } else if (part.topology == Topology::tetrahedral) {
+      local = out.tetra.mesh;
+    } else {
+      try {
+        local = detail::tetrahedralise(Positions<double>(sphere_pos));
+      } catch (const Error&) {
+        for (Index k = 0; k < part.num_nodes; ++k) branches.push_back({k});
+      }
+    }
+    if (!branches.empty()) {
+      const detail::ChainBinding cb =
+          detail::bind_chain(Positions<double>(sphere_pos), branches, part.first_node, pts);
       const Index base = Index(chain_rows.size());
       for (Index k = 0; k < cb.chain_nodes.rows(); ++k) {
         chain_rows.push_back(cb.chain_nodes.row(k));
@@ -435,11 +452,6 @@ TissueModel<double> HybridTopologyBuilder::build() {
         skin.offsets.row(v0 + v) = cb.offsets.row(v);
       }
     } else {
-      // Tetrahedral parts bind to their filling; the baselines to a Delaunay tetrahedralisation
-      // of their sphere centres.
-      TetrahedralMesh<double> local = out.tetra.mesh;
-      if (part.topology != Topology::tetrahedral)
-        local = detail::tetrahedralise(Positions<double>(sphere_pos));
       skin.kind.segment(v0, n).setConstant(std::uint8_t(SkinKind::barycentric));
       detail::bind_barycentric(local, part.first_node, pts, skin.nodes.middleRows(v0, n),
                                skin.weights.middleRows(v0, n));

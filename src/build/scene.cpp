@@ -240,7 +240,7 @@ Scene parse_scene(const std::string& text, const std::string& base_dir, const st
     if (p.contains("optimiser")) {
       if (!tetra) r.fail(where, "'optimiser' applies to tetrahedral parts only");
       part.optimiser = r.string(p, "optimiser", where);
-      const std::set<std::string> ok{"odt", "lloyd", "perturb", "exude", "none"};
+      const std::set<std::string> ok{"odt", "odt_perturb", "lloyd", "perturb", "exude", "none"};
       if (!ok.count(part.optimiser))
         r.fail(where,
                "unknown optimiser '" + part.optimiser + "' (odt, lloyd, perturb, exude, none)");

@@ -57,7 +57,7 @@ SurfaceMesh to_cgal(const TriangleMesh<double>& m, const Eigen::Matrix3d& map) {
 template <typename... Criteria_args>
 C3t3 run_mesh_3(const Domain& domain, const Criteria& criteria, const std::string& optimiser) {
   namespace P = CGAL::parameters;
-  // Fixed seed: a scene builds to the same model every time.
+  // Fixed seed: a tetrahedral part builds to the same mesh every time.
   CGAL::get_default_random() = CGAL::Random(0);
   if (optimiser == "none")
     return CGAL::make_mesh_3<C3t3>(domain, criteria, P::no_perturb(), P::no_exude());
@@ -68,6 +68,9 @@ C3t3 run_mesh_3(const Domain& domain, const Criteria& criteria, const std::strin
   if (optimiser == "lloyd")
     return CGAL::make_mesh_3<C3t3>(domain, criteria, P::lloyd(P::max_iteration_number = 20),
                                    P::no_perturb(), P::exude());
+  if (optimiser == "odt_perturb")
+    return CGAL::make_mesh_3<C3t3>(domain, criteria, P::odt(P::max_iteration_number = 20),
+                                   P::perturb(), P::exude());
   return CGAL::make_mesh_3<C3t3>(domain, criteria, P::odt(P::max_iteration_number = 20),
                                  P::no_perturb(), P::exude());
 }
