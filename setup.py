@@ -3,8 +3,8 @@
     /usr/bin/python3 -m venv --system-site-packages .venv
     .venv/bin/pip install --no-build-isolation .
 
-Works offline with Debian 12's packages (cmake, g++, pybind11-dev, libeigen3-dev, python3-dev,
-python3-numpy, python3-setuptools, python3-wheel). The version comes from CMakeLists.txt, so C++
+Works offline with Debian 12's packages (cmake, g++, pybind11-dev, libeigen3-dev, libcgal-dev,
+nlohmann-json3-dev, python3-dev, python3-numpy, python3-setuptools, python3-wheel). The version comes from CMakeLists.txt, so C++
 and Python share one number.
 """
 import os
@@ -35,14 +35,15 @@ class CMakeBuild(build_ext):
             "cmake", "-S", str(ROOT), "-B", str(build_dir),
             "-DCMAKE_BUILD_TYPE=Release",
             "-DFSM_BUILD_TESTS=OFF", "-DFSM_BUILD_BENCHMARKS=OFF", "-DFSM_BUILD_EXAMPLES=OFF",
-            "-DFSM_BUILD_PYTHON=ON",
+            "-DFSM_BUILD_PYTHON=ON", "-DFSM_BUILD_BUILDER=ON",
             f"-DPython_EXECUTABLE={sys.executable}",
             f"-DFSM_PYTHON_PACKAGE_DIR={package_dir}",
         ]
         if shutil.which("ninja"):
             configure += ["-G", "Ninja"]
         subprocess.check_call(configure)
-        subprocess.check_call(["cmake", "--build", str(build_dir), "--target", "_fsm",
+        # _fsm is the BSD runtime; _fsm_build the GPL builder (fsm.build).
+        subprocess.check_call(["cmake", "--build", str(build_dir), "--target", "_fsm", "_fsm_build",
                                "-j", str(os.cpu_count() or 2)])
 
 

@@ -131,6 +131,47 @@ TYPED_TEST(NoAllocation, DivergenceAndSubSteppingAllocateNothing) {
   EXPECT_GT(diverged, 0);  // the path under test really ran
 }
 
+// Skinning runs every render frame: it must not allocate either (both binding kinds).
+TEST(NoAllocation, SkinEvaluation) {
+  Skin<double> skin;
+  const int n = 6;
+  Positions<double> spheres(n, 3);
+  for (int i = 0; i < n; ++i) spheres.row(i) << 0.01 * i, 0, 0;
+  skin.chain_nodes.resize(n, 3);
+  skin.chain_rest_tangents.resize(n, 3);
+  for (int i = 0; i < n; ++i) {
+    skin.chain_nodes.row(i) << std::max(i - 1, 0), i, std::min(i + 1, n - 1);
+    skin.chain_rest_tangents.row(i) << 1, 0, 0;
+  }
+  skin.rest.vertices.setRandom(40, 3);
+  skin.rest.faces.resize(1, 3);
+  skin.rest.faces << 0, 1, 2;
+  skin.kind.resize(40);
+  skin.nodes.resize(40, 4);
+  skin.weights.setZero(40, 4);
+  skin.offsets.setRandom(40, 3);
+  for (Index v = 0; v < 40; ++v) {
+    if (v % 2) {
+      skin.kind[v] = std::uint8_t(SkinKind::barycentric);
+      skin.nodes.row(v) << 0, 1, 2, 3;
+      skin.weights.row(v) << 0.1, 0.2, 0.3, 0.4;
+    } else {
+      skin.kind[v] = std::uint8_t(SkinKind::chain);
+      skin.nodes.row(v) << 1, 2, -1, -1;
+      skin.weights.row(v) << 0.5, 0.5, 0, 0;
+    }
+  }
+  auto ws = skin.make_workspace();
+  Positions<double> out(40, 3);
+  spheres(3, 1) = 0.004;  // a bent chain
+  g_allocations = 0;
+  g_counting = true;
+  for (int k = 0; k < 20; ++k) skin.evaluate(spheres, ws, out);
+  g_counting = false;
+  EXPECT_EQ(g_allocations.load(), 0);
+  EXPECT_TRUE(out.allFinite());
+}
+
 TEST(NoAllocation, TwoThreadsAfterWarmUp) {
   if (detail::max_threads() < 2) GTEST_SKIP() << "built without OpenMP or only one thread";
   Simulation<double>::Options o;

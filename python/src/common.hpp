@@ -50,5 +50,6 @@ void define_sphere_model(py::module_& m);
 void define_tetrahedral_mesh(py::module_& m);
 void define_integrators(py::module_& m);
 void define_simulation(py::module_& m);
+void define_tissue_model(py::module_& m);
 
 }  // namespace fsm::python

@@ -12,13 +12,17 @@ mkdir -p "$work/src"
 tar -C "$src" --exclude="./build*" --exclude=./.git --exclude=./.venv -cf - . | tar -C "$work/src" -xf -
 "$work/venv/bin/pip" install --no-build-isolation --no-index --quiet "$work/src"
 cd "$work"
-"$work/venv/bin/python" - <<'PY'
-import fsm, numpy as np
+FSM_SRC="$work/src" "$work/venv/bin/python" - <<'PY'
+import fsm, fsm.build, numpy as np
 assert fsm.__file__.startswith(__import__("sys").prefix), fsm.__file__
 m = fsm.SphereModel()
 r = m.add_region("b", fsm.Material(density=1050, youngs_modulus=13150, viscosity=10.26))
 fsm.add_tetrahedral_part(m, fsm.make_cube_lattice((0, 0, 0), (3, 3, 3), 0.005), r, 0.0025)
 sim = fsm.Simulation(m)
 assert sim.step(1e-3).advanced
-print("pip-installed fsm", fsm.__version__, "from", fsm.__file__, "steps fine")
+import os
+model, report, table = fsm.build.build_model(os.path.join(os.environ["FSM_SRC"], "data/uterus/uterus.json"))
+assert report["spheres"] > 500, report["spheres"]
+print("pip-installed fsm", fsm.__version__, "from", fsm.__file__, "steps fine; builds the uterus:",
+      report["spheres"], "spheres")
 PY
