@@ -90,6 +90,9 @@ TEST(ForceModel, AssembledJacobiansMatchFiniteDifferences) {
   for (DampingModel dm : {DampingModel::along_link, DampingModel::full_relative_velocity}) {
     SphereModel<double> model = random_model<double>(rng, {2, 2, 2}, 0.3, true);
     ForceModel<double> forces = no_gravity(model, dm);
+    auto opt = forces.options();
+    opt.drag = 3.0;  // the drag's Jacobian is part of dF/dv
+    forces.set_options(opt);
     const Index n = model.num_nodes();
     const Eigen::MatrixXd K = Eigen::MatrixXd(forces.stiffness_matrix(model, JacobianForm::exact));
     const Eigen::MatrixXd D = Eigen::MatrixXd(forces.damping_matrix(model));
@@ -142,6 +145,9 @@ TEST(ForceModel, MatrixFreeImplicitOperatorMatchesAssembledMatrix) {
     model.set_fixed(0);
     model.set_fixed(5);
     ForceModel<double> forces = no_gravity(model, dm);
+    auto opt = forces.options();
+    opt.drag = 3.0;
+    forces.set_options(opt);
     forces.external_forces()(3, 1) = 0.01;
     const Index n = model.num_nodes();
     const double h = 2e-3;
@@ -176,6 +182,26 @@ TEST(ForceModel, MatrixFreeImplicitOperatorMatchesAssembledMatrix) {
       for (int c = 0; c < 3; ++c)
         EXPECT_TRUE(near(diag(i, c), model.fixed()[i] ? 1.0 : A(3 * i + c, 3 * i + c), 1e-12));
   }
+}
+
+// Drag: a free model moving rigidly slows as exp(-gamma t) (links stay unstrained, so nothing else
+// acts), under symplectic and implicit Euler alike to their first-order accuracy.
+TEST(ForceModel, DragDecaysRigidMotionExponentially) {
+  for (const std::string name : {"symplectic_euler", "implicit_euler"}) {
+    SphereModel<double> model = block<double>({2, 2, 2}, 0.005);
+    model.velocities().col(0).setConstant(0.1);
+    Simulation<double>::Options o;
+    o.integrator = name;
+    o.forces.gravity.setZero();
+    o.forces.drag = 5.0;
+    Simulation<double> sim(model, o);
+    const double dt = 1e-4;
+    for (int s = 0; s < 2000; ++s) ASSERT_TRUE(sim.step(dt).advanced());  // 0.2 s
+    EXPECT_TRUE(near(sim.model().velocities().col(0).mean(), 0.1 * std::exp(-5.0 * 0.2), 2e-3)) << name;
+  }
+  ForceModel<double>::Options bad;
+  bad.drag = -1;
+  EXPECT_THROW(ForceModel<double>(block<double>({1, 1, 1}, 0.005), bad), Error);
 }
 
 TEST(ForceModel, TwoThreadsGiveTheSameForcesAsOne) {

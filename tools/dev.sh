@@ -16,7 +16,7 @@ cd "$(dirname "${BASH_SOURCE[0]}")/.."
 # Every dependency is a Debian package (no network besides Debian's archive).
 PACKAGES=(
   build-essential cmake ninja-build ccache pkg-config git
-  libeigen3-dev
+  libeigen3-dev libccd-dev
   libcgal-dev libgmp-dev libmpfr-dev libboost-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3 python3-dev pybind11-dev python3-numpy python3-pytest

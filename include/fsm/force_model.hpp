@@ -48,6 +48,10 @@ class ForceModel {
     /// Threads for the force loop; more than 1 needs a build with OpenMP. No thread is started
     /// until a step runs with threads > 1.
     int threads{1};
+    /// Drag of the surroundings (1/s): a force \f$-\gamma m_i \mathbf{v}_i\f$ on every node, the
+    /// mass-proportional damping that stands in for the tissue and fluid around an organ. It damps
+    /// rigid motion (a tube swinging like a pendulum), which link damping cannot. 0 = none.
+    Scalar drag{0};
   };
 
   ForceModel() = default;
@@ -73,7 +77,23 @@ class ForceModel {
   /// @brief Sets every external force to zero.
   void clear_external_forces() noexcept;
 
-  /// @brief \f$1/m_i\f$ (1/kg), 0 for fixed nodes, `|V|`.
+  /// @name Sleeping
+  /// An asleep node is held still like a fixed one (inverse mass 0), and links none of whose ends
+  /// can move are skipped by the force loops. Simulation's sleep policy drives this.
+  /// @{
+  /// @brief Marks nodes asleep (1) or awake (0), `|V|` entries; recomputes the active link ranges
+  /// without allocating (capacity is reserved by refresh()). Returns false on a size mismatch.
+  bool set_asleep(const std::vector<std::uint8_t>& asleep, const SphereModel<Scalar>& model) noexcept;
+  [[nodiscard]] const std::vector<std::uint8_t>& asleep() const noexcept { return m_asleep; }
+  /// @brief 1 for a node that cannot move now (fixed or asleep).
+  [[nodiscard]] const std::vector<std::uint8_t>& immobile() const noexcept { return m_immobile; }
+  /// @brief Links the force loops visit: [begin, end) ranges with at least one mobile end.
+  [[nodiscard]] const std::vector<std::pair<Index, Index>>& active_links() const noexcept {
+    return m_ranges;
+  }
+  /// @}
+
+  /// @brief \f$1/m_i\f$ (1/kg), 0 for fixed and asleep nodes, `|V|`.
   [[nodiscard]] const ScalarArray<Scalar>& inverse_masses() const noexcept {
     return m_inverse_mass;
   }
@@ -118,15 +138,20 @@ class ForceModel {
   /// @brief \f$\partial\mathbf{F}/\partial\mathbf{x}\f$ (N/m), `3|V| x 3|V|`, at the model's state.
   [[nodiscard]] SparseMatrix stiffness_matrix(const SphereModel<Scalar>& model,
                                               JacobianForm form = JacobianForm::exact) const;
-  /// @brief \f$\partial\mathbf{F}/\partial\mathbf{v}\f$ (N s/m), `3|V| x 3|V|`.
+  /// @brief \f$\partial\mathbf{F}/\partial\mathbf{v}\f$ (N s/m), `3|V| x 3|V|`, drag included.
   [[nodiscard]] SparseMatrix damping_matrix(const SphereModel<Scalar>& model) const;
   /// @}
 
  private:
   void resize_scratch();
 
+  void update_mobility(const SphereModel<Scalar>& model) noexcept;
+
   Options m_options;
   Index m_num_nodes{0};
+  std::vector<std::uint8_t> m_asleep, m_immobile;
+  std::vector<std::pair<Index, Index>> m_ranges;
+  Scalar m_implicit_h{0};
   std::vector<Scalar> m_external;
   ScalarArray<Scalar> m_inverse_mass;
   std::vector<std::vector<Scalar>> m_scratch;

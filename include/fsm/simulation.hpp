@@ -73,6 +73,24 @@ struct DivergencePolicy {
   int max_substep_halvings{0};
 };
 
+/// @brief When regions (parts) sleep: held still and left out of the force loop until something
+/// touches them.
+///
+/// A region falls asleep when every one of its nodes has moved slower than `sleep_speed` for
+/// `sleep_time` (it is in equilibrium under whatever loads and contacts act on it); its velocities
+/// are zeroed and its external forces remembered. It wakes before a step when the external force
+/// on one of its nodes differs from the remembered one by more than `wake_force` (a new load, an
+/// instrument touching it, a neighbouring part pressing harder), or when a node of another region
+/// linked to it moves faster than `wake_speed`.
+template <typename Scalar>
+struct SleepPolicy {
+  bool enabled{false};
+  Scalar sleep_speed{Scalar(2e-4)};  ///< m/s
+  Scalar sleep_time{Scalar(0.05)};   ///< s
+  Scalar wake_speed{Scalar(2e-4)};   ///< m/s
+  Scalar wake_force{Scalar(1e-4)};   ///< N
+};
+
 /// @brief A SphereModel stepped in time by an integrator under a ForceModel, with divergence
 /// detection and rollback.
 ///
@@ -94,6 +112,7 @@ class Simulation {
     std::string integrator{"implicit_euler"};
     typename ForceModel<Scalar>::Options forces{};
     DivergencePolicy<Scalar> divergence{};
+    SleepPolicy<Scalar> sleep{};
   };
 
   /// @brief Validates the model (fsm::Error on bad input) and prepares everything for stepping.
@@ -132,6 +151,13 @@ class Simulation {
   /// velocities. Not real-time safe.
   void refresh();
 
+  /// @brief Changes the sleep policy (turning it off wakes every region).
+  void set_sleep_policy(const SleepPolicy<Scalar>& policy);
+  /// @brief True while region r sleeps.
+  [[nodiscard]] bool asleep(Index region) const { return m_region_asleep.at(std::size_t(region)) != 0; }
+  /// @brief How many regions sleep now.
+  [[nodiscard]] Index num_asleep() const noexcept;
+
   /// @brief Bounds on the model's highest eigenfrequency and damping (at rest).
   [[nodiscard]] const SpectralBound<Scalar>& spectral_bound() const noexcept { return m_bound; }
   /// @brief The current integrator's largest stable step for this model (s).
@@ -152,6 +178,9 @@ class Simulation {
   void save_state() noexcept;
   void restore_state() noexcept;
   [[nodiscard]] bool state_matches_saved() const noexcept;
+  bool wake_regions() noexcept;
+  void sleep_regions(Scalar dt) noexcept;
+  void set_region_asleep(Index region, bool asleep) noexcept;
 
   SphereModel<Scalar> m_model;
   Options m_options;
@@ -160,6 +189,11 @@ class Simulation {
   SpectralBound<Scalar> m_bound;
   std::vector<Index> m_fixed_nodes;
   Index m_num_links{0};
+  // Sleeping: nodes per region (CSR), nodes of other regions linked to each region (CSR).
+  std::vector<Index> m_region_start, m_region_nodes, m_border_start, m_border_nodes;
+  std::vector<std::uint8_t> m_region_asleep, m_node_asleep;
+  std::vector<Scalar> m_quiet_time;
+  Positions<Scalar> m_sleep_force;  // external forces when each node's region fell asleep
   Positions<Scalar> m_saved_x, m_saved_v;
   Scalar m_energy_reference{0};
   Scalar m_external_work{0};

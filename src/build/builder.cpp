@@ -289,7 +289,10 @@ TissueModel<double> HybridTopologyBuilder::build() {
         if (done[key] || len < 1e-9) continue;  // coincident centres cannot carry a rest length
         done[key] = true;
         const double rr = std::min(r[i], r[best]);
-        VoigtLink<double> law = rod_link(soft, M_PI * rr * rr, len);
+        // A bar no shorter than the smaller radius: nearly coincident spheres would otherwise get
+        // arbitrarily stiff links (k = E A / l), which set the highest eigenfrequency.
+        VoigtLink<double> law = rod_link(soft, M_PI * rr * rr, std::max(len, rr));
+        law.rest_length = len;
         law.stiffness *= att.stiffness_scale;
         law.damping *= att.stiffness_scale;
         law.large_stiffness *= att.stiffness_scale;

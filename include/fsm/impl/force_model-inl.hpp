@@ -129,11 +129,41 @@ void ForceModel<Scalar>::refresh(const SphereModel<Scalar>& model) {
     m_external.assign(3 * std::size_t(n), Scalar(0));
     m_num_nodes = n;
   }
+  if (m_asleep.size() != std::size_t(n)) m_asleep.assign(std::size_t(n), 0);
+  m_immobile.resize(std::size_t(n));
   m_inverse_mass.resize(n);
+  // Worst case: every other link active.
+  m_ranges.reserve(std::size_t(model.num_links()) / 2 + 2);
+  update_mobility(model);
+  resize_scratch();
+}
+
+template <typename Scalar>
+void ForceModel<Scalar>::update_mobility(const SphereModel<Scalar>& model) noexcept {
   const auto mass = model.masses();
   const auto fixed = model.fixed();
-  for (Index i = 0; i < n; ++i) m_inverse_mass[i] = fixed[i] ? Scalar(0) : Scalar(1) / mass[i];
-  resize_scratch();
+  for (Index i = 0; i < m_num_nodes; ++i) {
+    m_immobile[std::size_t(i)] = (fixed[i] || m_asleep[std::size_t(i)]) ? 1 : 0;
+    m_inverse_mass[i] = m_immobile[std::size_t(i)] ? Scalar(0) : Scalar(1) / mass[i];
+  }
+  m_ranges.clear();
+  const auto links = model.links();
+  const Index L = model.num_links();
+  for (Index l = 0; l < L;) {
+    while (l < L && m_immobile[std::size_t(links(l, 0))] && m_immobile[std::size_t(links(l, 1))]) ++l;
+    const Index begin = l;
+    while (l < L && !(m_immobile[std::size_t(links(l, 0))] && m_immobile[std::size_t(links(l, 1))])) ++l;
+    if (l > begin) m_ranges.emplace_back(begin, l);
+  }
+}
+
+template <typename Scalar>
+bool ForceModel<Scalar>::set_asleep(const std::vector<std::uint8_t>& asleep,
+                                    const SphereModel<Scalar>& model) noexcept {
+  if (asleep.size() != m_asleep.size() || model.num_nodes() != m_num_nodes) return false;
+  std::copy(asleep.begin(), asleep.end(), m_asleep.begin());
+  update_mobility(model);
+  return true;
 }
 
 template <typename Scalar>
@@ -141,6 +171,8 @@ void ForceModel<Scalar>::set_options(const Options& options) {
   if (options.threads < 1)
     throw Error("", "threads", std::to_string(options.threads) + " must be at least 1");
   if (!options.gravity.allFinite()) throw Error("", "gravity", "is not finite");
+  if (!(std::isfinite(options.drag) && options.drag >= 0))
+    throw Error("", "drag", "must be non-negative and finite (1/s)");
   m_options = options;
   resize_scratch();
 }
@@ -164,17 +196,18 @@ void ForceModel<Scalar>::evaluate(const SphereModel<Scalar>& model, const ConstP
   const Scalar* mass = model.masses().data();
   const Scalar* ext = m_external.data();
   const Vector3<Scalar> g = m_options.gravity;
-  auto init = [&](Index i, Scalar* out) {
-    const std::ptrdiff_t k = 3 * std::ptrdiff_t(i);
-    out[0] = mass[i] * g[0] + ext[k];
-    out[1] = mass[i] * g[1] + ext[k + 1];
-    out[2] = mass[i] * g[2] + ext[k + 2];
-  };
+  const Scalar drag = m_options.drag;
   const Scalar* xp = x.data();
   const Scalar* vp = v.data();
+  auto init = [&](Index i, Scalar* out) {
+    const std::ptrdiff_t k = 3 * std::ptrdiff_t(i);
+    out[0] = mass[i] * (g[0] - drag * vp[k]) + ext[k];
+    out[1] = mass[i] * (g[1] - drag * vp[k + 1]) + ext[k + 1];
+    out[2] = mass[i] * (g[2] - drag * vp[k + 2]) + ext[k + 2];
+  };
   const bool bilinear = model.has_bilinear_links();
   const DampingModel dm = m_options.damping;
-  auto kernel = [&](Index begin, Index end, Scalar* out) {
+  auto kernel_range = [&](Index begin, Index end, Scalar* out) {
     using DM = DampingModel;
     if (bilinear) {
       if (dm == DM::along_link)
@@ -188,6 +221,14 @@ void ForceModel<Scalar>::evaluate(const SphereModel<Scalar>& model, const ConstP
       else
         detail::accumulate_link_forces<Scalar, false, DM::full_relative_velocity>(L, xp, vp, out,
                                                                                   begin, end);
+    }
+  };
+  // Only the links with a mobile end (all of them unless nodes are fixed or asleep).
+  const auto& ranges = m_ranges;
+  auto kernel = [&](Index begin, Index end, Scalar* out) {
+    for (const auto& [a, b] : ranges) {
+      const Index lo = std::max(a, begin), hi = std::min(b, end);
+      if (lo < hi) kernel_range(lo, hi, out);
     }
   };
   detail::scatter_links(m_options.threads, model.num_nodes(), model.num_links(), f.data(),
@@ -240,10 +281,12 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
   const Vector3<Scalar> g = m_options.gravity;
   const DampingModel dm = m_options.damping;
   const Scalar h2 = h * h;
+  m_implicit_h = h;  // apply_implicit() needs it for the drag term
   // rhs = h F + h^2 K v, and the per-link blocks B = h D + h^2 K = a n n^T + b I.
+  const Scalar drag = m_options.drag;
   auto init = [&](Index i, Scalar* out) {
     const std::ptrdiff_t k = 3 * std::ptrdiff_t(i);
-    for (int c = 0; c < 3; ++c) out[c] = h * (mass[i] * g[c] + ext[k + c]);
+    for (int c = 0; c < 3; ++c) out[c] = h * (mass[i] * (g[c] - drag * v[k + c]) + ext[k + c]);
   };
   auto kernel = [&](Index begin, Index end, Scalar* out) {
     for (Index l = begin; l < end; ++l) {
@@ -273,7 +316,8 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
   detail::scatter_links(m_options.threads, model.num_nodes(), model.num_links(), rhs.data(),
                         m_scratch, init, kernel);
   // Jacobi diagonal: m_i + sum over links of diag(B_l), on both ends.
-  auto init_diag = [&](Index i, Scalar* out) { out[0] = out[1] = out[2] = mass[i]; };
+  // The drag's Jacobian -gamma m I joins the mass: M (1 + h gamma).
+  auto init_diag = [&](Index i, Scalar* out) { out[0] = out[1] = out[2] = mass[i] * (1 + h * drag); };
   auto kernel_diag = [&](Index begin, Index end, Scalar* out) {
     for (Index l = begin; l < end; ++l) {
       const Scalar* B = blocks + std::ptrdiff_t(implicit_block_size) * l;
@@ -288,9 +332,8 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
   };
   detail::scatter_links(m_options.threads, model.num_nodes(), model.num_links(), diagonal.data(),
                         m_scratch, init_diag, kernel_diag);
-  const auto fixed = model.fixed();
   for (Index i = 0; i < model.num_nodes(); ++i) {
-    if (fixed[i]) {
+    if (m_immobile[std::size_t(i)]) {
       rhs.row(i).setZero();
       diagonal.row(i).setOnes();
     }
@@ -303,11 +346,12 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
   const Index* ij = model.links().data();
   const Scalar* mass = model.masses().data();
   const Scalar* pp = p.data();
+  const Scalar md = Scalar(1) + m_implicit_h * m_options.drag;  // drag: M (1 + h gamma)
   auto init = [&](Index i, Scalar* out) {
     const std::ptrdiff_t k = 3 * std::ptrdiff_t(i);
-    out[0] = mass[i] * pp[k];
-    out[1] = mass[i] * pp[k + 1];
-    out[2] = mass[i] * pp[k + 2];
+    out[0] = md * mass[i] * pp[k];
+    out[1] = md * mass[i] * pp[k + 1];
+    out[2] = md * mass[i] * pp[k + 2];
   };
   auto kernel = [&](Index begin, Index end, Scalar* out) {
     for (Index l = begin; l < end; ++l) {
@@ -327,9 +371,8 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
   };
   detail::scatter_links(m_options.threads, model.num_nodes(), model.num_links(), y.data(),
                         m_scratch, init, kernel);
-  const auto fixed = model.fixed();
   for (Index i = 0; i < model.num_nodes(); ++i)
-    if (fixed[i]) y.row(i).setZero();
+    if (m_immobile[std::size_t(i)]) y.row(i).setZero();
 }
 
 template <typename Scalar>
@@ -394,6 +437,9 @@ typename ForceModel<Scalar>::SparseMatrix ForceModel<Scalar>::damping_matrix(
         trip.emplace_back(3 * j + r, 3 * j + c, -D(r, c));
       }
   }
+  for (Index i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c)
+      trip.emplace_back(3 * i + c, 3 * i + c, -m_options.drag * model.masses()[i]);
   SparseMatrix D(3 * n, 3 * n);
   D.setFromTriplets(trip.begin(), trip.end());
   return D;

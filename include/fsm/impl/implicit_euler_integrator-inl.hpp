@@ -35,13 +35,13 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg(SphereModel<Scalar>& 
   const JacobianForm form =
       m_options.jacobian == JacobianForm::exact ? JacobianForm::symmetric : m_options.jacobian;
   forces.prepare_implicit(model, dt, form, m_blocks.data(), m_rhs, m_diag);
-  const auto fixed = model.fixed();
+  const auto& fixed = forces.immobile();  // fixed or asleep
   const Index n = model.num_nodes();
 
   // Warm start: the previous step's velocity change, scaled to this step size.
   if (m_last_dt > Scalar(0)) m_dv *= dt / m_last_dt;
   for (Index i = 0; i < n; ++i)
-    if (fixed[i]) m_dv.row(i).setZero();
+    if (fixed[std::size_t(i)]) m_dv.row(i).setZero();
   if (!m_dv.allFinite()) m_dv.setZero();
 
   const Scalar bnorm = m_rhs.norm();
@@ -105,15 +105,15 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_assembled(SphereModel<Sc
     const Sparse K = forces.stiffness_matrix(model, form);
     const Sparse D = forces.damping_matrix(model);
     forces.evaluate(model, model.positions(), model.velocities(), m_q);
-    const auto fixed = model.fixed();
+    const auto& fixed = forces.immobile();  // fixed or asleep
     const auto mass = model.masses();
 
     Sparse A = -dt * D - (dt * dt) * K;
-    A.prune([&](Index r, Index c, const Scalar&) { return !fixed[r / 3] && !fixed[c / 3]; });
+    A.prune([&](Index r, Index c, const Scalar&) { return !fixed[std::size_t(r / 3)] && !fixed[std::size_t(c / 3)]; });
     std::vector<Eigen::Triplet<Scalar>> diag;
     diag.reserve(3 * std::size_t(n));
     for (Index i = 0; i < n; ++i)
-      for (int c = 0; c < 3; ++c) diag.emplace_back(3 * i + c, 3 * i + c, fixed[i] ? 1 : mass[i]);
+      for (int c = 0; c < 3; ++c) diag.emplace_back(3 * i + c, 3 * i + c, fixed[std::size_t(i)] ? 1 : mass[i]);
     Sparse Mm(3 * n, 3 * n);
     Mm.setFromTriplets(diag.begin(), diag.end());
     A += Mm;
@@ -123,7 +123,7 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_assembled(SphereModel<Sc
     const Eigen::Map<const Vec> fflat(m_q.data(), 3 * n);
     Vec b = dt * fflat + (dt * dt) * (K * vflat);
     for (Index i = 0; i < n; ++i)
-      if (fixed[i]) b.template segment<3>(3 * i).setZero();
+      if (fixed[std::size_t(i)]) b.template segment<3>(3 * i).setZero();
 
     Vec dv;
     if (lu) {

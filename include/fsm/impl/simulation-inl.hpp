@@ -59,14 +59,127 @@ void Simulation<Scalar>::refresh() {
   m_integrator->prepare(m_model);
   m_integrator->reset();
   m_bound = fsm::spectral_bound(m_model, m_options.forces.damping);
+  m_bound.damping_max += m_options.forces.drag;  // the drag damps every mode at rate gamma
   const auto k = m_model.stiffness();
   const auto l0 = m_model.rest_lengths();
   const Scalar s = d.energy_floor_strain;
   m_energy_floor = Scalar(0.5) * s * s * k.dot(l0.cwiseProduct(l0));
+  // Sleeping bookkeeping (every region awake after a refresh).
+  const Index nr = m_model.num_regions(), nn = m_model.num_nodes();
+  const auto region = m_model.node_regions();
+  m_region_start.assign(std::size_t(nr) + 1, 0);
+  for (Index i = 0; i < nn; ++i) ++m_region_start[std::size_t(region[i]) + 1];
+  for (Index r = 0; r < nr; ++r) m_region_start[std::size_t(r) + 1] += m_region_start[std::size_t(r)];
+  m_region_nodes.assign(std::size_t(nn), 0);
+  {
+    std::vector<Index> fill(m_region_start.begin(), m_region_start.end() - 1);
+    for (Index i = 0; i < nn; ++i) m_region_nodes[std::size_t(fill[std::size_t(region[i])]++)] = i;
+  }
+  std::vector<std::vector<Index>> border(static_cast<std::size_t>(nr));
+  const auto links = m_model.links();
+  for (Index l = 0; l < m_model.num_links(); ++l) {
+    const Index a = links(l, 0), b = links(l, 1);
+    if (region[a] != region[b]) {
+      border[std::size_t(region[a])].push_back(b);
+      border[std::size_t(region[b])].push_back(a);
+    }
+  }
+  m_border_start.assign(1, 0);
+  m_border_nodes.clear();
+  for (auto& list : border) {
+    std::sort(list.begin(), list.end());
+    list.erase(std::unique(list.begin(), list.end()), list.end());
+    m_border_nodes.insert(m_border_nodes.end(), list.begin(), list.end());
+    m_border_start.push_back(Index(m_border_nodes.size()));
+  }
+  m_region_asleep.assign(std::size_t(nr), 0);
+  m_node_asleep.assign(std::size_t(nn), 0);
+  m_quiet_time.assign(std::size_t(nr), Scalar(0));
+  m_sleep_force.setZero(nn, 3);
+  m_forces.set_asleep(m_node_asleep, m_model);
+  const auto& sp = m_options.sleep;
+  if (!(sp.sleep_speed >= 0) || !(sp.sleep_time >= 0) || !(sp.wake_speed >= 0) ||
+      !(sp.wake_force >= 0))
+    throw Error("", "sleep policy", "speeds and time must be non-negative");
+
   m_saved_x.resize(m_model.num_nodes(), 3);
   m_saved_v.resize(m_model.num_nodes(), 3);
   save_state();
   reset_energy_reference();
+}
+
+template <typename Scalar>
+void Simulation<Scalar>::set_sleep_policy(const SleepPolicy<Scalar>& policy) {
+  m_options.sleep = policy;
+  refresh();
+}
+
+template <typename Scalar>
+Index Simulation<Scalar>::num_asleep() const noexcept {
+  return Index(std::count(m_region_asleep.begin(), m_region_asleep.end(), std::uint8_t(1)));
+}
+
+template <typename Scalar>
+void Simulation<Scalar>::set_region_asleep(Index r, bool asleep) noexcept {
+  m_region_asleep[std::size_t(r)] = asleep ? 1 : 0;
+  m_quiet_time[std::size_t(r)] = Scalar(0);
+  auto v = m_model.velocities();
+  const auto ext = m_forces.external_forces();
+  for (Index k = m_region_start[std::size_t(r)]; k < m_region_start[std::size_t(r) + 1]; ++k) {
+    const Index i = m_region_nodes[std::size_t(k)];
+    m_node_asleep[std::size_t(i)] = asleep ? 1 : 0;
+    if (asleep) {
+      v.row(i).setZero();
+      m_sleep_force.row(i) = ext.row(i);
+    }
+  }
+}
+
+// Before a step: wake asleep regions with a load on them or a moving neighbour. True if any woke.
+template <typename Scalar>
+bool Simulation<Scalar>::wake_regions() noexcept {
+  bool changed = false;
+  const auto ext = m_forces.external_forces();
+  const auto v = m_model.velocities();
+  const Scalar wake2 = m_options.sleep.wake_speed * m_options.sleep.wake_speed;
+  for (Index r = 0; r < m_model.num_regions(); ++r) {
+    if (!m_region_asleep[std::size_t(r)]) continue;
+    bool wake = false;
+    const Scalar tol2 = m_options.sleep.wake_force * m_options.sleep.wake_force;
+    for (Index k = m_region_start[std::size_t(r)]; k < m_region_start[std::size_t(r) + 1] && !wake; ++k) {
+      const Index i = m_region_nodes[std::size_t(k)];
+      wake = (ext.row(i) - m_sleep_force.row(i)).squaredNorm() > tol2;
+    }
+    for (Index k = m_border_start[std::size_t(r)]; k < m_border_start[std::size_t(r) + 1] && !wake; ++k)
+      wake = v.row(m_border_nodes[std::size_t(k)]).squaredNorm() > wake2;
+    if (wake) {
+      set_region_asleep(r, false);
+      changed = true;
+    }
+  }
+  return changed;
+}
+
+// After an accepted step: regions quiet for long enough, with no load, fall asleep.
+template <typename Scalar>
+void Simulation<Scalar>::sleep_regions(Scalar dt) noexcept {
+  bool changed = false;
+  const auto v = m_model.velocities();
+  const Scalar sleep2 = m_options.sleep.sleep_speed * m_options.sleep.sleep_speed;
+  for (Index r = 0; r < m_model.num_regions(); ++r) {
+    if (m_region_asleep[std::size_t(r)]) continue;
+    bool quiet = true;
+    for (Index k = m_region_start[std::size_t(r)]; k < m_region_start[std::size_t(r) + 1] && quiet; ++k) {
+      const Index i = m_region_nodes[std::size_t(k)];
+      quiet = v.row(i).squaredNorm() <= sleep2;
+    }
+    m_quiet_time[std::size_t(r)] = quiet ? m_quiet_time[std::size_t(r)] + dt : Scalar(0);
+    if (quiet && m_quiet_time[std::size_t(r)] >= m_options.sleep.sleep_time) {
+      set_region_asleep(r, true);
+      changed = true;
+    }
+  }
+  if (changed) m_forces.set_asleep(m_node_asleep, m_model);
 }
 
 template <typename Scalar>
@@ -102,6 +215,7 @@ void Simulation<Scalar>::set_fixed(Index node, bool fixed) {
   if (fixed) m_fixed_nodes.push_back(node);
   m_forces.refresh(m_model);
   m_bound = fsm::spectral_bound(m_model, m_options.forces.damping);
+  m_bound.damping_max += m_options.forces.drag;
   save_state();
   reset_energy_reference();
 }
@@ -185,9 +299,12 @@ StepReport<Scalar> Simulation<Scalar>::step(Scalar dt) noexcept {
       return report;
     }
     for (const Index i : m_fixed_nodes) v.row(i).setZero();
+    for (Index i = 0; i < m_model.num_nodes(); ++i)
+      if (m_node_asleep[std::size_t(i)]) v.row(i).setZero();
     save_state();
     if (policy.check_energy) reset_energy_reference();
   }
+  if (m_options.sleep.enabled && wake_regions()) m_forces.set_asleep(m_node_asleep, m_model);
   for (int level = 0; level <= policy.max_substep_halvings; ++level) {
     const int n = 1 << level;
     const Scalar h = dt / Scalar(n);
@@ -213,6 +330,7 @@ StepReport<Scalar> Simulation<Scalar>::step(Scalar dt) noexcept {
     if (good) {
       m_external_work += work;
       m_time += dt;
+      if (m_options.sleep.enabled) sleep_regions(dt);
       save_state();
       report.status = level == 0 ? StepStatus::ok : StepStatus::recovered;
       report.energy = energy;

@@ -1,0 +1,379 @@
+#pragma once
+
+// Definitions of ContactSolver; included at the bottom of fsm/collision/contact.hpp.
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "fsm/error.hpp"
+
+namespace fsm::collision {
+
+template <typename Scalar>
+ContactSolver<Scalar>::ContactSolver(const SphereModel<Scalar>& model,
+                                     const ContactOptions<Scalar>& options)
+    : m_options(options) {
+  const auto& o = m_options;
+  if (!(o.stiffness_scale > 0) || !(o.damping_ratio >= 0) || !(o.friction_speed > 0) ||
+      !(o.part_friction >= 0) || o.max_contacts < 1 || !(o.verlet_skin >= 0) ||
+      !(o.time_step >= 0) || !std::isfinite(o.time_step) ||
+      (o.time_step > 0 && !(o.damping_ratio <= 1)))
+    throw Error(
+        "", "contact options",
+        "stiffness_scale and friction_speed must be positive, damping_ratio and "
+        "part_friction non-negative (damping_ratio at most 1 with a time_step), verlet_skin "
+        "and time_step finite and non-negative, max_contacts at least 1");
+  refresh(model);
+}
+
+template <typename Scalar>
+void ContactSolver<Scalar>::refresh(const SphereModel<Scalar>& model) {
+  model.validate();
+  const Index n = model.num_nodes();
+  m_max_radius = n > 0 ? model.radii().maxCoeff() : Scalar(0);
+  m_cell = std::max(Scalar(2) * m_max_radius, Scalar(1e-6));
+  std::uint32_t size = 64;
+  while (size < 2u * std::uint32_t(std::max<Index>(n, 1))) size <<= 1;
+  m_mask = size - 1;
+  m_head.assign(size, -1);
+  m_next.assign(std::size_t(n), -1);
+  m_prev.assign(std::size_t(n), -1);
+  m_cell_of.assign(std::size_t(n), Eigen::Vector3i::Zero());
+  m_slot_of.assign(std::size_t(n), 0);
+  m_hashed = false;
+  // Link adjacency, to leave linked pairs (which are held by their links) out of part contact.
+  m_adj_start.assign(std::size_t(n) + 1, 0);
+  const auto links = model.links();
+  for (Index l = 0; l < model.num_links(); ++l) {
+    ++m_adj_start[std::size_t(links(l, 0)) + 1];
+    ++m_adj_start[std::size_t(links(l, 1)) + 1];
+  }
+  for (std::size_t i = 0; i < std::size_t(n); ++i) m_adj_start[i + 1] += m_adj_start[i];
+  m_adj.assign(std::size_t(m_adj_start.back()), 0);
+  std::vector<Index> fill(m_adj_start.begin(), m_adj_start.end() - 1);
+  for (Index l = 0; l < model.num_links(); ++l) {
+    m_adj[std::size_t(fill[std::size_t(links(l, 0))]++)] = links(l, 1);
+    m_adj[std::size_t(fill[std::size_t(links(l, 1))]++)] = links(l, 0);
+  }
+  m_k.resize(std::size_t(n));
+  m_budget.resize(std::size_t(n));
+  m_pair_count.assign(std::size_t(n), 0);
+  std::vector<Index> count(std::size_t(model.num_regions()), 0);
+  const Scalar h = m_options.time_step;
+  for (Index i = 0; i < n; ++i) {
+    const Index r = model.node_regions()[i];
+    m_k[std::size_t(i)] =
+        m_options.stiffness_scale * model.region(r).material.youngs_modulus * model.radii()[i];
+    m_budget[std::size_t(i)] =
+        h > 0 ? model.masses()[i] / (h * h) : std::numeric_limits<Scalar>::infinity();
+    ++count[std::size_t(r)];
+  }
+  // An instrument presses a few spheres, locally: the implicit step's matrix M + h^2 K holds
+  // their links too, so an instrument's contact may add what a node's links hold. Part contacts
+  // act between whole parts (a fibroid against the body moves as one), where links do not help:
+  // they get the mass term only.
+  m_tool_budget = m_budget;
+  if (h > 0)
+    for (Index l = 0; l < model.num_links(); ++l) {
+      m_tool_budget[std::size_t(links(l, 0))] += model.stiffness()[l];
+      m_tool_budget[std::size_t(links(l, 1))] += model.stiffness()[l];
+    }
+  m_dominant_region =
+      count.empty() ? -1 : Index(std::max_element(count.begin(), count.end()) - count.begin());
+  m_contacts.assign(std::size_t(m_options.max_contacts), Contact<Scalar>{});
+  m_pairs.clear();
+  m_pairs.reserve(32 * std::size_t(std::max<Index>(n, 1)));
+  m_list_x.resize(n, 3);
+  m_list_valid = false;
+  m_num_contacts = 0;
+  m_wrenches.assign(m_instruments.size(), Wrench<Scalar>{});
+}
+
+template <typename Scalar>
+Index ContactSolver<Scalar>::add_instrument(const Instrument<Scalar>& instrument) {
+  const std::string what = "instrument '" + instrument.name + "'";
+  validate(instrument.shape, what);
+  if (!instrument.pose.position.allFinite() || !instrument.pose.orientation.coeffs().allFinite())
+    throw Error("", what, "pose is not finite");
+  if (!(instrument.friction >= 0)) throw Error("", what, "friction must be non-negative");
+  m_instruments.push_back(instrument);
+  m_instruments.back().pose.orientation.normalize();
+  m_wrenches.emplace_back();
+  return Index(m_instruments.size() - 1);
+}
+
+template <typename Scalar>
+std::uint32_t ContactSolver<Scalar>::slot(const Eigen::Vector3i& c) const noexcept {
+  const std::uint32_t h = std::uint32_t(c.x()) * 73856093u ^ std::uint32_t(c.y()) * 19349663u ^
+                          std::uint32_t(c.z()) * 83492791u;
+  return h & m_mask;
+}
+
+template <typename Scalar>
+void ContactSolver<Scalar>::update_hash(const SphereModel<Scalar>& model) noexcept {
+  const auto x = model.positions();
+  const Scalar inv = Scalar(1) / m_cell;
+  for (Index i = 0; i < model.num_nodes(); ++i) {
+    const auto p = x.row(i);
+    if (!p.allFinite()) continue;  // keep the old cell; such a state is never stepped
+    const Eigen::Vector3i c((p * inv).array().floor().template cast<int>());
+    const std::size_t k = std::size_t(i);
+    if (m_hashed && c == m_cell_of[k]) continue;
+    if (m_hashed) {  // unlink from the old slot
+      if (m_prev[k] >= 0)
+        m_next[std::size_t(m_prev[k])] = m_next[k];
+      else
+        m_head[m_slot_of[k]] = m_next[k];
+      if (m_next[k] >= 0) m_prev[std::size_t(m_next[k])] = m_prev[k];
+    }
+    const std::uint32_t s = slot(c);
+    m_cell_of[k] = c;
+    m_slot_of[k] = s;
+    m_prev[k] = -1;
+    m_next[k] = m_head[s];
+    if (m_head[s] >= 0) m_prev[std::size_t(m_head[s])] = i;
+    m_head[s] = i;
+  }
+  m_hashed = true;
+}
+
+template <typename Scalar>
+template <typename Visit>
+void ContactSolver<Scalar>::for_each_in_box(const Vector3<Scalar>& lo, const Vector3<Scalar>& hi,
+                                            Visit&& visit) const {
+  if (!lo.allFinite() || !hi.allFinite()) return;
+  const Scalar inv = Scalar(1) / m_cell;
+  const Eigen::Vector3i a((lo * inv).array().floor().template cast<int>());
+  const Eigen::Vector3i b((hi * inv).array().floor().template cast<int>());
+  const double cells =
+      double(b.x() - a.x() + 1) * double(b.y() - a.y() + 1) * double(b.z() - a.z() + 1);
+  if (!m_options.spatial_hash) {  // brute force: every sphere
+    for (Index j = 0; j < Index(m_next.size()); ++j) visit(j);
+    return;
+  }
+  if (cells > double(m_next.size())) {  // a box larger than the model: scan every sphere once
+    for (Index j = 0; j < Index(m_next.size()); ++j) {
+      const Eigen::Vector3i& c = m_cell_of[std::size_t(j)];
+      if ((c.array() >= a.array()).all() && (c.array() <= b.array()).all()) visit(j);
+    }
+    return;
+  }
+  for (int z = a.z(); z <= b.z(); ++z)
+    for (int y = a.y(); y <= b.y(); ++y)
+      for (int x = a.x(); x <= b.x(); ++x) {
+        const Eigen::Vector3i c(x, y, z);
+        for (Index j = m_head[slot(c)]; j >= 0; j = m_next[std::size_t(j)])
+          if (m_cell_of[std::size_t(j)] == c) visit(j);
+      }
+}
+
+template <typename Scalar>
+bool ContactSolver<Scalar>::linked(Index i, Index j) const noexcept {
+  for (Index k = m_adj_start[std::size_t(i)]; k < m_adj_start[std::size_t(i) + 1]; ++k)
+    if (m_adj[std::size_t(k)] == j) return true;
+  return false;
+}
+
+template <typename Scalar>
+void ContactSolver<Scalar>::record(const Contact<Scalar>& c) noexcept {
+  if (m_num_contacts < Index(m_contacts.size()))
+    m_contacts[std::size_t(m_num_contacts++)] = c;
+  else
+    m_overflow = true;
+}
+
+template <typename Scalar>
+void ContactSolver<Scalar>::compute(const SphereModel<Scalar>& model,
+                                    Eigen::Ref<Positions<Scalar>> forces) noexcept {
+  m_num_contacts = 0;
+  m_overflow = false;
+  m_candidates = m_narrow_tests = 0;
+  for (auto& w : m_wrenches) w = Wrench<Scalar>{};
+  if (Index(m_next.size()) != model.num_nodes() || forces.rows() != model.num_nodes()) return;
+  update_hash(model);
+  const auto x = model.positions();
+  const auto v = model.velocities();
+  const auto rest = model.rest_positions();
+  const auto radius = model.radii();
+  const auto mass = model.masses();
+  const auto region = model.node_regions();
+  const Scalar zeta = m_options.damping_ratio,
+               eps2 = m_options.friction_speed * m_options.friction_speed;
+
+  // Instruments against spheres.
+  for (std::size_t k = 0; k < m_instruments.size(); ++k) {
+    const Instrument<Scalar>& ins = m_instruments[k];
+    if (!ins.enabled) continue;
+    auto [lo, hi] = bounding_box(ins.shape, ins.pose);
+    lo.array() -= m_max_radius;
+    hi.array() += m_max_radius;
+    Wrench<Scalar>& w = m_wrenches[k];
+    for_each_in_box(lo, hi, [&](Index j) {
+      ++m_candidates;
+      ++m_narrow_tests;
+      const Vector3<Scalar> c = x.row(j).transpose();
+      const auto hit = contact(ins.shape, ins.pose, c, radius[j]);
+      if (!hit) return;
+      const Vector3<Scalar>& n = hit->normal;
+      const Vector3<Scalar> arm = hit->point - ins.pose.position;
+      const Vector3<Scalar> v_tool = ins.linear_velocity + ins.angular_velocity.cross(arm);
+      const Vector3<Scalar> v_rel = v.row(j).transpose() - v_tool;
+      const Scalar vn = v_rel.dot(n);
+      const Scalar kc = std::min(m_k[std::size_t(j)], Scalar(0.5) * m_tool_budget[std::size_t(j)]);
+      const Scalar cd = Scalar(2) * zeta * std::sqrt(kc * mass[j]);
+      const Scalar fn = std::max(Scalar(0), kc * hit->depth - cd * vn);
+      const Vector3<Scalar> vt = v_rel - vn * n;
+      const Vector3<Scalar> F =
+          fn * n - (ins.friction * fn / std::sqrt(vt.squaredNorm() + eps2)) * vt;
+      if (!F.allFinite()) return;
+      forces.row(j) += F.transpose();
+      w.force -= F;
+      w.torque -= arm.cross(F);
+      record({j, Index(k), -1, n, hit->depth, hit->point, F});
+    });
+  }
+
+  // Parts against parts (and folding within a part, when asked).
+  if (!m_options.part_contact && !m_options.self_contact) return;
+  const Scalar skin = m_options.verlet_skin;
+  bool rebuild = !m_list_valid || !(skin > 0);
+  if (!rebuild) {  // has any sphere moved more than half the skin since the list was built?
+    const Scalar limit = Scalar(0.25) * skin * skin;
+    for (Index q = 0; q < model.num_nodes() && !rebuild; ++q)
+      rebuild = (x.row(q) - m_list_x.row(q)).squaredNorm() > limit;
+  }
+  if (rebuild) {
+    m_pairs.clear();
+    bool fits = true;
+    std::fill(m_pair_count.begin(), m_pair_count.end(), 0);
+    for_each_part_pair(model, skin, [&](Index i, Index j) {
+      ++m_pair_count[std::size_t(i)];
+      ++m_pair_count[std::size_t(j)];
+      if (m_pairs.size() < m_pairs.capacity())
+        m_pairs.emplace_back(i, j);
+      else
+        fits = false;
+    });
+    m_list_x = x;
+    m_list_valid = fits && skin > 0;  // a list that did not fit is not kept: scan again next step
+    ++m_rebuilds;
+    if (!fits) {  // rare: more candidate pairs than reserved; handle this step by scanning
+      for_each_part_pair(model, Scalar(0),
+                         [&](Index i, Index j) { part_contact(model, i, j, forces); });
+      return;
+    }
+  }
+  for (const auto& [i, j] : m_pairs) part_contact(model, i, j, forces);
+}
+
+// Every candidate pair (i, j) for part contact whose spheres are within reach + extra, once each.
+template <typename Scalar>
+template <typename Visit>
+void ContactSolver<Scalar>::for_each_part_pair(const SphereModel<Scalar>& model, Scalar extra,
+                                               Visit&& visit) const {
+  const auto x = model.positions();
+  const auto rest = model.rest_positions();
+  const auto radius = model.radii();
+  const auto region = model.node_regions();
+  for (Index i = 0; i < model.num_nodes(); ++i) {
+    const Index ri = region[i];
+    if (!m_options.self_contact && ri == m_dominant_region) continue;
+    const Vector3<Scalar> xi = x.row(i).transpose();
+    const Scalar reach = radius[i] + m_max_radius + extra;
+    for_each_in_box(xi.array() - reach, xi.array() + reach, [&](Index j) {
+      if (j == i) return;
+      const Index rj = region[j];
+      const bool same = ri == rj;
+      if (same && !m_options.self_contact) return;
+      if (!same && !m_options.part_contact) return;
+      // Each pair once: from its non-dominant side, or from the lower index.
+      if (m_options.self_contact ? j < i : (rj != m_dominant_region && j < i)) return;
+      const Scalar reach_ij = radius[i] + radius[j] + extra;
+      if ((x.row(j).transpose() - xi).squaredNorm() >= reach_ij * reach_ij) return;
+      if (same && (rest.row(j) - rest.row(i)).norm() <= Scalar(2) * (radius[i] + radius[j])) return;
+      if (linked(i, j)) return;
+      visit(i, j);
+    });
+  }
+}
+
+template <typename Scalar>
+void ContactSolver<Scalar>::part_contact(const SphereModel<Scalar>& model, Index i, Index j,
+                                         Eigen::Ref<Positions<Scalar>> forces) noexcept {
+  ++m_candidates;
+  const auto x = model.positions();
+  const auto v = model.velocities();
+  const auto rest = model.rest_positions();
+  const auto radius = model.radii();
+  const auto mass = model.masses();
+  const bool same = model.node_regions()[i] == model.node_regions()[j];
+  const Scalar reach_ij = radius[i] + radius[j];
+  const Vector3<Scalar> d = (x.row(j) - x.row(i)).transpose();
+  const Scalar dist2 = d.squaredNorm();
+  if (dist2 >= reach_ij * reach_ij) return;
+  ++m_narrow_tests;
+  const Scalar rest_dist = (rest.row(j) - rest.row(i)).norm();
+  const Scalar threshold = same ? reach_ij : std::min(reach_ij, rest_dist);
+  const Scalar dist = std::sqrt(dist2);
+  const Scalar depth = threshold - dist;
+  if (!(depth > 0)) return;
+  Vector3<Scalar> n = dist > Scalar(0) ? Vector3<Scalar>(d / dist)
+                                       : Vector3<Scalar>((rest.row(j) - rest.row(i)).transpose());
+  if (!(n.squaredNorm() > 0)) n = Vector3<Scalar>::UnitZ();
+  n.normalize();
+  const Vector3<Scalar> v_rel = (v.row(j) - v.row(i)).transpose();
+  const Scalar vn = v_rel.dot(n);
+  // The stiffer of the two materials does not win: the softer one yields. Each sphere's share of
+  // its stability budget is split among its candidate part contacts.
+  const Scalar share_i =
+      m_budget[std::size_t(i)] / Scalar(2 * std::max<Index>(1, m_pair_count[std::size_t(i)]));
+  const Scalar share_j =
+      m_budget[std::size_t(j)] / Scalar(2 * std::max<Index>(1, m_pair_count[std::size_t(j)]));
+  const Scalar kc = std::min({m_k[std::size_t(i)], m_k[std::size_t(j)], share_i, share_j});
+  const Scalar mu = mass[i] * mass[j] / (mass[i] + mass[j]);
+  const Scalar zeta = m_options.damping_ratio;
+  const Scalar eps2 = m_options.friction_speed * m_options.friction_speed;
+  const Scalar fn = std::max(Scalar(0), kc * depth - Scalar(2) * zeta * std::sqrt(kc * mu) * vn);
+  const Vector3<Scalar> vt = v_rel - vn * n;
+  const Vector3<Scalar> F =
+      fn * n - (m_options.part_friction * fn / std::sqrt(vt.squaredNorm() + eps2)) * vt;
+  if (!F.allFinite()) return;
+  forces.row(j) += F.transpose();
+  forces.row(i) -= F.transpose();
+  record({j, -1, i, n, depth,
+          Vector3<Scalar>(x.row(i).transpose() + (radius[i] - Scalar(0.5) * depth) * n), F});
+}
+
+template <typename Scalar>
+Index ContactSolver<Scalar>::project(SphereModel<Scalar>& model) noexcept {
+  if (Index(m_next.size()) != model.num_nodes()) return 0;
+  update_hash(model);
+  auto x = model.positions();
+  auto v = model.velocities();
+  const auto radius = model.radii();
+  const auto fixed = model.fixed();
+  Index moved = 0;
+  for (const Instrument<Scalar>& ins : m_instruments) {
+    if (!ins.enabled) continue;
+    auto [lo, hi] = bounding_box(ins.shape, ins.pose);
+    lo.array() -= m_max_radius;
+    hi.array() += m_max_radius;
+    for_each_in_box(lo, hi, [&](Index j) {
+      if (fixed[j]) return;
+      const auto hit =
+          contact(ins.shape, ins.pose, Vector3<Scalar>(x.row(j).transpose()), radius[j]);
+      if (!hit) return;
+      x.row(j) += (hit->depth * hit->normal).transpose();
+      // Keep no velocity into the instrument (relative to its surface).
+      const Vector3<Scalar> v_tool =
+          ins.linear_velocity + ins.angular_velocity.cross(hit->point - ins.pose.position);
+      const Scalar vn = (v.row(j).transpose() - v_tool).dot(hit->normal);
+      if (vn < 0) v.row(j) -= (vn * hit->normal).transpose();
+      ++moved;
+    });
+  }
+  return moved;
+}
+
+}  // namespace fsm::collision

@@ -1,0 +1,311 @@
+// ContactSolver: the spatial hash finds the same contacts and forces as testing every sphere;
+// momentum balance between instruments and tissue; the penalty, damping and friction laws; part
+// contact; no tunnelling at 0.5 m/s and 1 kHz; degenerate input; sleeping.
+
+#include <random>
+
+#include "common.hpp"
+#include "fsm/collision/contact.hpp"
+
+namespace fsm::test {
+namespace {
+
+using namespace fsm::collision;
+using V3 = Vector3<double>;
+
+// Random spheres in a 4 cm box, three regions, random links between near neighbours of one region.
+SphereModel<double> random_spheres(std::mt19937& rng, int n) {
+  std::uniform_real_distribution<double> u(0, 0.04), r(0.001, 0.004);
+  SphereModel<double> m;
+  for (int k = 0; k < 3; ++k) m.add_region("r" + std::to_string(k), tissue<double>(10000.0 + 5000 * k));
+  for (int i = 0; i < n; ++i) m.add_node(V3(u(rng), u(rng), u(rng)), r(rng), 0.001, i % 3);
+  for (int i = 0; i < n; ++i)
+    for (int j = i + 1; j < n; ++j)
+      if (i % 3 == j % 3 && (m.rest_positions().row(i) - m.rest_positions().row(j)).norm() < 0.006)
+        m.add_link(i, j, 50.0, 0.1);
+  // Move and shake them so parts interpenetrate beyond their rest overlap.
+  std::normal_distribution<double> g(0, 0.003);
+  for (int i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c) {
+      m.positions()(i, c) += g(rng);
+      m.velocities()(i, c) = 0.1 * g(rng) / 0.003;
+    }
+  return m;
+}
+
+std::vector<Instrument<double>> random_instruments(std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(0, 0.04), a(-1, 1);
+  std::vector<Instrument<double>> out;
+  Instrument<double> s;
+  s.name = "ball";
+  s.shape = SphereShape<double>{0.006};
+  Instrument<double> c;
+  c.name = "shaft";
+  c.shape = CapsuleShape<double>{0.003, 0.02};
+  Instrument<double> y;
+  y.name = "cylinder";
+  y.shape = CylinderShape<double>{0.004, 0.01};
+  for (Instrument<double>* ins : {&s, &c, &y}) {
+    ins->pose.position = V3(u(rng), u(rng), u(rng));
+    ins->pose.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(3 * a(rng), V3(a(rng), a(rng), a(rng)).normalized()));
+    ins->linear_velocity = V3(a(rng), a(rng), a(rng)) * 0.1;
+    ins->angular_velocity = V3(a(rng), a(rng), a(rng));
+    out.push_back(*ins);
+  }
+  return out;
+}
+
+TEST(ContactSolver, SpatialHashMatchesBruteForce) {
+  std::mt19937 rng(3);
+  for (int trial = 0; trial < 20; ++trial) {
+    const SphereModel<double> m = random_spheres(rng, 150);
+    const auto instruments = random_instruments(rng);
+    ContactOptions<double> hashed, brute;
+    hashed.part_friction = brute.part_friction = 0.3;
+    brute.spatial_hash = false;
+    ContactSolver<double> a(m, hashed), b(m, brute);
+    for (const auto& ins : instruments) {
+      a.add_instrument(ins);
+      b.add_instrument(ins);
+    }
+    Positions<double> fa = Positions<double>::Zero(m.num_nodes(), 3), fb = fa;
+    a.compute(m, fa);
+    b.compute(m, fb);
+    EXPECT_EQ(a.num_contacts(), b.num_contacts()) << trial;
+    EXPECT_GT(b.num_contacts(), 0);
+    EXPECT_LT((fa - fb).cwiseAbs().maxCoeff(), 1e-12 * std::max(1.0, fb.cwiseAbs().maxCoeff())) << trial;
+    for (Index k = 0; k < a.num_instruments(); ++k)
+      EXPECT_TRUE(matrices_near(a.wrench(k).force, b.wrench(k).force, 1e-12));
+    EXPECT_LT(a.candidates(), b.candidates());  // and it did less work
+  }
+}
+
+// What the tissue gets, the instrument gets back: the sphere forces of instrument contacts sum to
+// minus the instrument force, their moments about the pose origin to minus its torque; part
+// contacts sum to zero.
+TEST(ContactSolver, MomentumBalance) {
+  std::mt19937 rng(5);
+  for (int trial = 0; trial < 10; ++trial) {
+    const SphereModel<double> m = random_spheres(rng, 150);
+    const auto instruments = random_instruments(rng);
+    ContactOptions<double> o;
+    o.part_contact = false;
+    ContactSolver<double> with_tools(m, o);
+    for (const auto& ins : instruments) with_tools.add_instrument(ins);
+    Positions<double> f = Positions<double>::Zero(m.num_nodes(), 3);
+    with_tools.compute(m, f);
+    V3 total = f.colwise().sum().transpose();
+    for (Index k = 0; k < with_tools.num_instruments(); ++k) total += with_tools.wrench(k).force;
+    EXPECT_LT(total.norm(), 1e-12 * std::max(1.0, f.cwiseAbs().sum()));
+    for (Index k = 0; k < with_tools.num_instruments(); ++k) {
+      V3 moment = V3::Zero();
+      for (Index c = 0; c < with_tools.num_contacts(); ++c) {
+        const auto& ct = with_tools.contacts()[c];
+        if (ct.instrument == k) moment += (ct.point - instruments[std::size_t(k)].pose.position).cross(ct.force);
+      }
+      EXPECT_TRUE(matrices_near((-moment).eval(), with_tools.wrench(k).torque, 1e-12));
+    }
+    ContactSolver<double> parts_only(m);
+    Positions<double> g = Positions<double>::Zero(m.num_nodes(), 3);
+    parts_only.compute(m, g);
+    EXPECT_GT(parts_only.num_contacts(), 0);
+    EXPECT_LT(g.colwise().sum().norm(), 1e-12 * std::max(1.0, g.cwiseAbs().sum()));
+  }
+}
+
+// One sphere, one instrument: the static force is k delta with k = s E r; approaching adds
+// damping, separating removes it but never pulls; sliding gives mu f_n against the slip.
+TEST(ContactSolver, PenaltyDampingAndFrictionLaws) {
+  SphereModel<double> m;
+  const double E = 20000, r = 0.003, mass = 0.002;
+  m.add_node(V3(0, 0, 0.0045), r, mass, m.add_region("tissue", tissue<double>(E)));
+  Instrument<double> ball;
+  ball.shape = SphereShape<double>{0.002};
+  ball.friction = 0.4;
+  ContactSolver<double> solver(m);
+  const Index k = solver.add_instrument(ball);
+  Positions<double> f = Positions<double>::Zero(1, 3);
+  solver.compute(m, f);
+  const double delta = 0.005 - 0.0045, kc = 2 * E * r;  // default stiffness_scale 2
+  EXPECT_NEAR(f(0, 2), kc * delta, 1e-12);
+  EXPECT_NEAR(f(0, 0), 0.0, 1e-15);
+  EXPECT_TRUE(matrices_near(solver.wrench(k).force, V3(-f.row(0).transpose()), 1e-14));
+  // Approaching (sphere moving down onto the tool) adds damping.
+  m.velocities()(0, 2) = -0.01;
+  f.setZero();
+  solver.compute(m, f);
+  const double c = 2 * 0.5 * std::sqrt(kc * mass);
+  EXPECT_NEAR(f(0, 2), kc * delta + c * 0.01, 1e-12);
+  // Separating fast: the damping would pull; the force is clamped at zero.
+  m.velocities()(0, 2) = 10.0;
+  f.setZero();
+  solver.compute(m, f);
+  EXPECT_EQ(f(0, 2), 0.0);
+  // Sliding along x at 0.1 m/s (>> the 1 mm/s regularisation): friction mu f_n against the slip.
+  m.velocities().row(0) << 0.1, 0, 0;
+  f.setZero();
+  solver.compute(m, f);
+  EXPECT_NEAR(f(0, 0), -0.4 * kc * delta, 1e-4 * kc * delta);
+  // The tool moving instead of the sphere gives the opposite slip.
+  m.velocities().setZero();
+  solver.instrument(k).linear_velocity = V3(0.1, 0, 0);
+  f.setZero();
+  solver.compute(m, f);
+  EXPECT_NEAR(f(0, 0), 0.4 * kc * delta, 1e-4 * kc * delta);
+}
+
+// Two parts touching at rest: no force at rest; pressed together they push apart, equal and
+// opposite; linked pairs are left to their links.
+TEST(ContactSolver, PartContactStartsAtTheRestConfiguration) {
+  SphereModel<double> m = block<double>({2, 2, 2}, 0.004);
+  const Index n = m.num_nodes();
+  const Index other = m.add_region("other", tissue<double>());
+  for (Index i = 0; i < n; ++i)
+    m.add_node(m.rest_positions().row(i).transpose() + V3(0.0085, 0, 0), 0.002, 0.001, other);
+  ContactSolver<double> solver(m);
+  Positions<double> f = Positions<double>::Zero(m.num_nodes(), 3);
+  solver.compute(m, f);
+  EXPECT_EQ(f.norm(), 0.0);  // at rest: in contact, no force
+  for (Index i = n; i < 2 * n; ++i) m.positions()(i, 0) -= 0.001;  // push the second part in
+  f.setZero();
+  solver.compute(m, f);
+  EXPECT_GT(solver.num_contacts(), 0);
+  EXPECT_LT(f.topRows(n).col(0).sum(), 0);   // the first part is pushed -x
+  EXPECT_GT(f.bottomRows(n).col(0).sum(), 0);  // the second +x
+  EXPECT_LT(f.colwise().sum().norm(), 1e-12);
+}
+
+// A layer of 5 mm spheres (a linked sheet held at its rim) and a 2 mm ball moving through it at
+// 0.5 m/s, stepped at 1 kHz: 0.5 mm per step, a tenth of a sphere. No sphere may pass through the
+// ball: penetration stays below the sphere radius at every step; with position projection it stays
+// at zero after each projection.
+TEST(ContactSolver, NoTunnellingAtHalfAMetrePerSecond) {
+  for (bool project : {false, true}) {
+    SphereModel<double> sheet;
+    const Index reg = sheet.add_region("sheet", tissue<double>(13150, 10.26));
+    const int n = 7;
+    const double h = 0.005, r = 0.0025;
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) sheet.add_node(V3(h * (i - 3), h * (j - 3), 0), r, 3e-4, reg);
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
+        if (i + 1 < n) sheet.add_link(j * n + i, j * n + i + 1, 20.0, 0.02);
+        if (j + 1 < n) sheet.add_link(j * n + i, (j + 1) * n + i, 20.0, 0.02);
+        if (i + 1 < n && j + 1 < n) sheet.add_link(j * n + i, (j + 1) * n + i + 1, 10.0, 0.01);
+        if (i == 0 || j == 0 || i == n - 1 || j == n - 1) sheet.set_fixed(j * n + i);
+      }
+    Simulation<double>::Options o;
+    o.forces.gravity.setZero();
+    Simulation<double> sim(sheet, o);
+    ContactSolver<double> solver(sim.model());
+    Instrument<double> tool;
+    tool.shape = SphereShape<double>{0.002};
+    tool.pose.position = V3(0.0007, -0.0004, 0.006);
+    tool.linear_velocity = V3(0, 0, -0.5);
+    const Index k = solver.add_instrument(tool);
+    double deepest = 0, peak_force = 0;
+    for (int s = 0; s < 30; ++s) {  // 15 mm: through the layer's plane and 10 mm on
+      solver.instrument(k).pose.position += 1e-3 * solver.instrument(k).linear_velocity;
+      sim.external_forces().setZero();
+      solver.compute(sim.model(), sim.external_forces());
+      ASSERT_TRUE(sim.step(1e-3).advanced()) << s;
+      if (project) solver.project(sim.model());
+      // Penetration after the step, and no sphere centre on the far side of the ball's centre
+      // within the ball's shadow.
+      const V3 c = solver.instrument(k).pose.position;
+      for (Index i = 0; i < sim.model().num_nodes(); ++i) {
+        const V3 x = sim.model().positions().row(i).transpose();
+        const double pen = 0.002 + r - (x - c).norm();
+        deepest = std::max(deepest, pen);
+        if (std::hypot(x.x() - c.x(), x.y() - c.y()) < 0.002) EXPECT_LT(x.z(), c.z()) << "step " << s;
+      }
+      peak_force = std::max(peak_force, solver.wrench(k).force.norm());
+    }
+    EXPECT_LT(deepest, project ? 1e-9 : r) << "project " << project;
+    EXPECT_GT(peak_force, 0.05) << "the sheet did push back";
+  }
+}
+
+TEST(ContactSolver, DegenerateInputGivesDefinedResults) {
+  SphereModel<double> m = block<double>({2, 2, 2}, 0.004);
+  ContactSolver<double> solver(m);
+  Instrument<double> point_capsule;  // zero length: a ball
+  point_capsule.shape = CapsuleShape<double>{0.003, 0.0};
+  point_capsule.pose.position = V3(0.004, 0.004, 0.0095);
+  const Index k = solver.add_instrument(point_capsule);
+  Positions<double> f = Positions<double>::Zero(m.num_nodes(), 3);
+  solver.compute(m, f);
+  EXPECT_GT(solver.num_contacts(), 0);
+  EXPECT_TRUE(f.allFinite());
+  // A NaN pose set later: no contact, no NaN anywhere.
+  solver.instrument(k).pose.position.x() = std::nan("");
+  f.setZero();
+  solver.compute(m, f);
+  EXPECT_EQ(solver.num_contacts(), 0);
+  EXPECT_TRUE(f.allFinite());
+  EXPECT_TRUE(solver.wrench(k).force.allFinite());
+  // A NaN pose or a negative radius at registration: a clear error.
+  Instrument<double> bad;
+  bad.name = "bad";
+  bad.pose.position = V3(std::nan(""), 0, 0);
+  EXPECT_THROW(solver.add_instrument(bad), Error);
+  bad.pose.position.setZero();
+  bad.shape = SphereShape<double>{-0.001};
+  EXPECT_THROW(solver.add_instrument(bad), Error);
+  // Coincident spheres of two parts: a defined normal (from their rest offset), finite forces.
+  SphereModel<double> two;
+  const Index a = two.add_region("a", tissue<double>()), b = two.add_region("b", tissue<double>());
+  two.add_node(V3(0, 0, 0), 0.002, 0.001, a);
+  two.add_node(V3(0.003, 0, 0), 0.002, 0.001, b);
+  two.positions().row(1) = two.positions().row(0);
+  ContactSolver<double> pair(two);
+  Positions<double> g = Positions<double>::Zero(2, 3);
+  pair.compute(two, g);
+  ASSERT_EQ(pair.num_contacts(), 1);
+  EXPECT_TRUE(g.allFinite());
+  EXPECT_GT(g(1, 0), 0);  // pushed apart along their rest offset
+}
+
+// Sleeping: a part far from the instrument stops integrating once quiet and wakes when touched;
+// a sleeping simulation matches an awake one where the instrument works.
+TEST(Sleeping, QuietPartsSleepAndWakeOnContact) {
+  SphereModel<double> m = block<double>({3, 3, 2}, 0.005);
+  const Index n = m.num_nodes();
+  const Index far = m.add_region("far", tissue<double>());
+  for (Index i = 0; i < n; ++i)
+    m.add_node(m.rest_positions().row(i).transpose() + V3(0.05, 0, 0), m.radii()[i], m.masses()[i], far);
+  for (Index l = 0, L = m.num_links(); l < L; ++l) m.add_link(m.links()(l, 0) + n, m.links()(l, 1) + n, m.link(l));
+  for (Index i = 0; i < 2 * n; ++i)
+    if (m.rest_positions()(i, 2) < 1e-9) m.set_fixed(i);
+  Simulation<double>::Options o;
+  o.sleep.enabled = true;
+  Simulation<double> sim(m, o);
+  ContactSolver<double> solver(sim.model());
+  Instrument<double> tool;
+  tool.shape = SphereShape<double>{0.003};
+  tool.pose.position = V3(0.0075, 0.0075, 0.0125);
+  const Index k = solver.add_instrument(tool);
+  auto step = [&] {
+    sim.external_forces().setZero();
+    solver.compute(sim.model(), sim.external_forces());
+    return sim.step(1e-3);
+  };
+  // Pressing on the first block; the second sags under gravity, settles, then sleeps.
+  for (int s = 0; s < 400; ++s) ASSERT_TRUE(step().advanced());
+  EXPECT_TRUE(sim.asleep(far));
+  EXPECT_FALSE(sim.asleep(0));  // the one under the instrument keeps working
+  const Positions<double> frozen = sim.model().positions().middleRows(n, n);
+  for (int s = 0; s < 20; ++s) ASSERT_TRUE(step().advanced());
+  EXPECT_EQ(sim.model().positions().middleRows(n, n), frozen);  // not integrated
+  Index active = 0;
+  for (const auto& [a, b] : sim.forces().active_links()) active += b - a;
+  EXPECT_LE(active, sim.model().num_links() / 2);  // its links are skipped
+  // Move the instrument onto the sleeping block: it wakes and yields.
+  solver.instrument(k).pose.position = V3(0.0575, 0.0075, 0.0125);
+  for (int s = 0; s < 20; ++s) ASSERT_TRUE(step().advanced());
+  EXPECT_FALSE(sim.asleep(far));
+  EXPECT_GT((sim.model().positions().middleRows(n, n) - frozen).norm(), 1e-5);
+}
+
+}  // namespace
+}  // namespace fsm::test
