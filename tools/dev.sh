@@ -21,6 +21,8 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   python3 python3-dev pybind11-dev python3-numpy python3-pytest
   python3-venv python3-pip python3-setuptools python3-wheel
+  python3-matplotlib python3-distributed calculix-ccx
+  libglfw3-dev libegl-dev libgl-dev libosmesa6-dev libgl1-mesa-dri libpng-dev xvfb xauth
 )
 
 install_deps() {
