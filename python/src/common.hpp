@@ -51,5 +51,6 @@ void define_tetrahedral_mesh(py::module_& m);
 void define_integrators(py::module_& m);
 void define_simulation(py::module_& m);
 void define_tissue_model(py::module_& m);
+void define_collision(py::module_& m);
 
 }  // namespace fsm::python

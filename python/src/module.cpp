@@ -14,4 +14,5 @@ PYBIND11_MODULE(_fsm, m) {
   fsm::python::define_integrators(m);
   fsm::python::define_simulation(m);
   fsm::python::define_tissue_model(m);
+  fsm::python::define_collision(m);
 }
