@@ -3,8 +3,14 @@
 /// @file fsm.hpp
 /// @brief Umbrella header for the libfsm runtime.
 
+#include "fsm/collision/contact.hpp"
+#include "fsm/collision/shapes.hpp"
+#include "fsm/collision/triangle_bvh.hpp"
 #include "fsm/error.hpp"
 #include "fsm/force_model.hpp"
+#include "fsm/haptics/haptic_device.hpp"
+#include "fsm/haptics/scripted_device.hpp"
+#include "fsm/haptics/servo_loop.hpp"
 #include "fsm/heun_integrator.hpp"
 #include "fsm/implicit_euler_integrator.hpp"
 #include "fsm/improved_euler_integrator.hpp"
@@ -23,3 +29,4 @@
 #include "fsm/types.hpp"
 #include "fsm/version.hpp"
 #include "fsm/voigt_link.hpp"
+#include "fsm/volume_term.hpp"

@@ -21,9 +21,9 @@ namespace fsm {
 /// \f$\mathbf{F}_k = -\kappa\,\frac{V - V_0}{V_0}\,\partial V/\partial\mathbf{x}_k\f$. Since V is
 /// invariant under translation and rotation, the four forces sum to zero and so do their torques.
 ///
-/// For a uniform dilation \f$\varepsilon\f$ the term stores \f$\frac{9}{2}\kappa V_0\varepsilon^2\f$,
-/// i.e. it adds exactly \f$\kappa\f$ (Pa) to the bulk modulus and nothing to the shear modulus. A
-/// Van Gelder network of modulus \f$E\f$ has \f$\mu = 2E/5\f$, \f$K = 2E/3\f$
+/// For a uniform dilation \f$\varepsilon\f$ the term stores \f$\frac{9}{2}\kappa
+/// V_0\varepsilon^2\f$, i.e. it adds exactly \f$\kappa\f$ (Pa) to the bulk modulus and nothing to
+/// the shear modulus. A Van Gelder network of modulus \f$E\f$ has \f$\mu = 2E/5\f$, \f$K = 2E/3\f$
 /// (docs/physics.md section 2); bulk_modulus_for() gives the \f$\kappa\f$ that makes it a material
 /// of Poisson's ratio \f$\nu\f$ with the same shear modulus.
 ///

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <vector>
 
 #include "common.hpp"
 #include "fsm/collision/contact.hpp"
@@ -27,30 +28,6 @@ using RayHit = fc::RayHit<Scalar>;
 using Model = SphereModel<Scalar>;
 using Sim = Simulation<Scalar>;
 using Array = py::array_t<Scalar, py::array::c_style | py::array::forcecast>;
-
-// The C++ solver skips compute() and project() silently when the model's size differs from the
-// one it was sized for (they are noexcept); Python should hear about it, so the bound class
-// remembers the size.
-class BoundContactSolver : public fc::ContactSolver<Scalar> {
- public:
-  BoundContactSolver(const Model& model, const Options& options)
-      : fc::ContactSolver<Scalar>(model, options), m_nodes(model.num_nodes()) {}
-  void refresh(const Model& model) {
-    fc::ContactSolver<Scalar>::refresh(model);
-    m_nodes = model.num_nodes();
-  }
-  [[nodiscard]] Index num_nodes() const noexcept { return m_nodes; }
-  void check(const Model& model, const char* what) const {
-    if (model.num_nodes() != m_nodes)
-      throw Error("", what,
-                  "has " + std::to_string(model.num_nodes()) +
-                      " spheres but the solver was sized for " + std::to_string(m_nodes) +
-                      " (call refresh(model) after growing the model)");
-  }
-
- private:
-  Index m_nodes{0};
-};
 
 std::string shape_string(const py::array& a) {
   std::string s = "(";
@@ -91,7 +68,7 @@ Eigen::Quaternion<Scalar> to_orientation(const Array& a) {
         R.determinant() < 0)
       throw Error("", "orientation",
                   "3 x 3 matrix is not a rotation (want R^T R = I within 1e-6 and det R = +1)");
-    Eigen::Quaternion<Scalar> q(Eigen::Matrix<Scalar, 3, 3>(R));
+    Eigen::Quaternion<Scalar> q{Eigen::Matrix<Scalar, 3, 3>(R)};
     q.normalize();
     return q;
   }
@@ -320,7 +297,7 @@ pose, linear_velocity and angular_velocity read as views: inst.pose.position[2] 
            py::arg("linear_velocity") = Vector3<Scalar>::Zero().eval(),
            py::arg("angular_velocity") = Vector3<Scalar>::Zero().eval(), py::arg("friction") = 0.2,
            py::arg("enabled") = true)
-      .def_readwrite("name", &Instrument::name)
+      .def_readwrite("name", &Instrument::name, "a label used in error messages")
       .def_property(
           "shape", [](const Instrument& i) { return i.shape; },
           [](Instrument& i, const Shape& s) {
@@ -389,11 +366,14 @@ contact force stays stable (0 removes the cap). Validated when a ContactSolver i
       .def_readwrite("stiffness_scale", &Options::stiffness_scale, "s in k = s E r")
       .def_readwrite("damping_ratio", &Options::damping_ratio, "zeta in c = 2 zeta sqrt(k m)")
       .def_readwrite("friction_speed", &Options::friction_speed, "m/s")
-      .def_readwrite("part_contact", &Options::part_contact)
-      .def_readwrite("self_contact", &Options::self_contact)
-      .def_readwrite("part_friction", &Options::part_friction)
-      .def_readwrite("max_contacts", &Options::max_contacts)
-      .def_readwrite("spatial_hash", &Options::spatial_hash)
+      .def_readwrite("part_contact", &Options::part_contact, "spheres of different regions collide")
+      .def_readwrite("self_contact", &Options::self_contact,
+                     "spheres of one region far apart at rest collide (folding)")
+      .def_readwrite("part_friction", &Options::part_friction, "Coulomb coefficient between parts")
+      .def_readwrite("max_contacts", &Options::max_contacts,
+                     "length of the contact list (allocated once)")
+      .def_readwrite("spatial_hash", &Options::spatial_hash,
+                     "False tests every sphere (the reference the tests compare with)")
       .def_readwrite("verlet_skin", &Options::verlet_skin, "m")
       .def_readwrite("time_step", &Options::time_step, "s (0: no stiffness cap)");
 
@@ -433,8 +413,11 @@ project().)")
            "Sizes the solver for a Simulation's model.")
       .def("refresh", &BoundContactSolver::refresh, py::arg("model"),
            "Re-reads the model after adding nodes or links, or changing radii.")
-      .def("add_instrument", &BoundContactSolver::add_instrument, py::arg("instrument"),
-           R"(Adds a copy of an Instrument; returns its index. fsm.Error for a bad shape, pose or
+      .def(
+          "add_instrument",
+          [](BoundContactSolver& s, const Instrument& i) { return s.add_instrument(i); },
+          py::arg("instrument"),
+          R"(Adds a copy of an Instrument; returns its index. fsm.Error for a bad shape, pose or
 friction. Invalidates Instrument references taken earlier with instrument(i).)")
       .def(
           "instrument",
@@ -447,7 +430,9 @@ friction. Invalidates Instrument references taken earlier with instrument(i).)")
           py::arg("index"), py::return_value_policy::reference_internal,
           R"(Instrument i, by reference: set its pose and velocities here each frame. The reference
 is valid until the next add_instrument().)")
-      .def_property_readonly("num_instruments", &BoundContactSolver::num_instruments)
+      .def_property_readonly(
+          "num_instruments", [](const BoundContactSolver& s) { return s.num_instruments(); },
+          "how many instruments were added")
       .def_property_readonly("num_nodes", &BoundContactSolver::num_nodes,
                              "the model size the solver was sized for")
       .def_property_readonly(
@@ -506,7 +491,7 @@ removes its velocity into the instrument (call after a step). Returns how many m
       .def_property_readonly(
           "contacts",
           [](const BoundContactSolver& s) {
-            py::array out(contact_dtype(), {py::ssize_t(s.num_contacts())});
+            py::array out(contact_dtype(), std::vector<py::ssize_t>{py::ssize_t(s.num_contacts())});
             if (s.num_contacts() > 0)
               std::memcpy(out.mutable_data(), s.contacts(), sizeof(Contact) * s.num_contacts());
             return out;
@@ -514,16 +499,22 @@ removes its velocity into the instrument (call after a step). Returns how many m
           R"(The contacts of the last compute() as a numpy structured array (a copy), fields:
 sphere, instrument (-1 for sphere-sphere), other (the other sphere or -1) as int32; normal (3,),
 depth (m), point (3,) (m) and force (3,) (N, on `sphere`; `other` gets -force) as float64.)")
-      .def_property_readonly("num_contacts", &BoundContactSolver::num_contacts)
-      .def_property_readonly("overflowed", &BoundContactSolver::overflowed,
-                             "True when the last compute() found more than max_contacts (their "
-                             "forces were still applied; only the list is short)")
-      .def_property_readonly("candidates", &BoundContactSolver::candidates,
-                             "candidate pairs from the broad phase in the last compute()")
-      .def_property_readonly("narrow_tests", &BoundContactSolver::narrow_tests,
-                             "narrow-phase tests in the last compute()")
-      .def_property_readonly("pair_list_rebuilds", &BoundContactSolver::pair_list_rebuilds,
-                             "part-contact pair list rebuilds since construction")
+      .def_property_readonly(
+          "num_contacts", [](const BoundContactSolver& s) { return s.num_contacts(); },
+          "contacts recorded by the last compute()")
+      .def_property_readonly(
+          "overflowed", [](const BoundContactSolver& s) { return s.overflowed(); },
+          "True when the last compute() found more than max_contacts (their "
+          "forces were still applied; only the list is short)")
+      .def_property_readonly(
+          "candidates", [](const BoundContactSolver& s) { return s.candidates(); },
+          "candidate pairs from the broad phase in the last compute()")
+      .def_property_readonly(
+          "narrow_tests", [](const BoundContactSolver& s) { return s.narrow_tests(); },
+          "narrow-phase tests in the last compute()")
+      .def_property_readonly(
+          "pair_list_rebuilds", [](const BoundContactSolver& s) { return s.pair_list_rebuilds(); },
+          "part-contact pair list rebuilds since construction")
       .def("__repr__", [](const BoundContactSolver& s) {
         return "ContactSolver(" + std::to_string(s.num_nodes()) + " spheres, " +
                std::to_string(s.num_instruments()) + " instruments)";
@@ -533,10 +524,10 @@ depth (m), point (3,) (m) and force (3,) (N, on `sphere`; `other` gets -force) a
   py::class_<RayHit>(m, "RayHit", R"(A ray hit: face index, distance (m) and barycentrics.
 
 u and v weight the face's vertices 1 and 2 (vertex 0 gets 1 - u - v).)")
-      .def_readonly("face", &RayHit::face)
+      .def_readonly("face", &RayHit::face, "the face index (-1 from intersect_ray_triangle)")
       .def_readonly("distance", &RayHit::distance, "m from the ray origin")
-      .def_readonly("u", &RayHit::u)
-      .def_readonly("v", &RayHit::v)
+      .def_readonly("u", &RayHit::u, "barycentric weight of the face's vertex 1")
+      .def_readonly("v", &RayHit::v, "barycentric weight of the face's vertex 2")
       .def("__repr__", [](const RayHit& h) {
         return "RayHit(face=" + std::to_string(h.face) +
                ", distance=" + std::to_string(h.distance) + ", u=" + std::to_string(h.u) +
@@ -620,7 +611,7 @@ Faces are two-sided and the test is watertight; ties go to the smallest face ind
           py::arg("centre"), py::arg("radius"),
           R"(Indices (int32 array, tree order) of the faces whose triangle comes within radius (m) of
 centre (m).)")
-      .def_property_readonly("num_faces", &Bvh::num_faces)
+      .def_property_readonly("num_faces", &Bvh::num_faces, "|F|")
       .def_property_readonly("num_vertices", &Bvh::num_vertices, "|V| that refit() expects")
       .def_property_readonly("depth", &Bvh::depth, "depth of the deepest leaf")
       .def("__repr__", [](const Bvh& b) {

@@ -45,6 +45,31 @@ void assign_rows3(Map&& dst,
   std::copy(src.data(), src.data() + rows * 3, dst.data());
 }
 
+// The C++ solver skips compute() and project() silently when the model's size differs from the
+// one it was sized for (they are noexcept); Python should hear about it, so the bound class
+// remembers the size.
+class BoundContactSolver : public collision::ContactSolver<Scalar> {
+ public:
+  BoundContactSolver(const SphereModel<Scalar>& model,
+                     const collision::ContactOptions<Scalar>& options)
+      : collision::ContactSolver<Scalar>(model, options), m_nodes(model.num_nodes()) {}
+  void refresh(const SphereModel<Scalar>& model) {
+    collision::ContactSolver<Scalar>::refresh(model);
+    m_nodes = model.num_nodes();
+  }
+  [[nodiscard]] Index num_nodes() const noexcept { return m_nodes; }
+  void check(const SphereModel<Scalar>& model, const char* what) const {
+    if (model.num_nodes() != m_nodes)
+      throw Error("", what,
+                  "has " + std::to_string(model.num_nodes()) +
+                      " spheres but the solver was sized for " + std::to_string(m_nodes) +
+                      " (call refresh(model) after growing the model)");
+  }
+
+ private:
+  Index m_nodes{0};
+};
+
 void define_material(py::module_& m);
 void define_sphere_model(py::module_& m);
 void define_tetrahedral_mesh(py::module_& m);
@@ -52,5 +77,6 @@ void define_integrators(py::module_& m);
 void define_simulation(py::module_& m);
 void define_tissue_model(py::module_& m);
 void define_collision(py::module_& m);
+void define_haptics(py::module_& m);
 
 }  // namespace fsm::python

@@ -12,9 +12,11 @@ void define_integrators(py::module_& m) {
       .def(py::init([](Scalar omega, Scalar c) { return SB::oscillator(omega, c); }),
            py::arg("omega"), py::arg("damping_rate"),
            "The bound of one oscillator q'' = -omega^2 q - c q'.")
-      .def_readwrite("omega_max", &SB::omega_max)
-      .def_readwrite("damping_max", &SB::damping_max)
-      .def_readwrite("retardation_min", &SB::retardation_min);
+      .def_readwrite("omega_max", &SB::omega_max,
+                     "bound on the highest angular eigenfrequency (rad/s)")
+      .def_readwrite("damping_max", &SB::damping_max, "bound on the highest damping rate (1/s)")
+      .def_readwrite("retardation_min", &SB::retardation_min,
+                     "shortest retardation time eta / E of a link (s)");
   m.def(
       "spectral_bound",
       [](const SphereModel<Scalar>& model, const std::string& damping) {
@@ -26,8 +28,9 @@ void define_integrators(py::module_& m) {
       "Block-Gershgorin bounds on the highest eigenfrequency and damping rate at rest.");
 
   py::class_<I>(m, "Integrator", R"(Base of the time-stepping schemes (step(model, forces, dt)).)")
-      .def_property_readonly("name", [](const I& i) { return std::string(i.name()); })
-      .def_property_readonly("order", &I::order)
+      .def_property_readonly(
+          "name", [](const I& i) { return std::string(i.name()); }, "the scheme's registry name")
+      .def_property_readonly("order", &I::order, "order of accuracy in the time step")
       .def("stable_time_step", &I::stable_time_step, py::arg("bound"),
            "Largest stable step (s) for a SpectralBound; 0 = none, inf = any.")
       .def("__repr__", [](const I& i) { return "<fsm." + std::string(i.name()) + " integrator>"; });
@@ -80,9 +83,12 @@ tolerance: CG relative residual; max_iterations: CG cap.)")
            }),
            py::arg("solver") = "conjugate_gradient", py::arg("jacobian") = "definite",
            py::arg("tolerance") = 1e-6, py::arg("max_iterations") = 200)
-      .def_property_readonly("tolerance", [](const IE& ie) { return ie.options().tolerance; })
-      .def_property_readonly("max_iterations",
-                             [](const IE& ie) { return ie.options().max_iterations; });
+      .def_property_readonly(
+          "tolerance", [](const IE& ie) { return ie.options().tolerance; },
+          "CG relative residual tolerance")
+      .def_property_readonly(
+          "max_iterations", [](const IE& ie) { return ie.options().max_iterations; },
+          "CG iteration cap per solve");
 
   m.def("integrator_names", &integrator_names, "Names accepted wherever an integrator is chosen.");
   m.def(

@@ -25,7 +25,8 @@ out-of-range values.)")
       .def_readwrite("viscosity", &M::viscosity, "Pa s")
       .def_readwrite("large_strain_modulus", &M::large_strain_modulus, "Pa (0: linear)")
       .def_readwrite("switch_strain", &M::switch_strain, "|strain| of the modulus switch")
-      .def_property_readonly("is_bilinear", &M::is_bilinear)
+      .def_property_readonly("is_bilinear", &M::is_bilinear,
+                             "True when large_strain_modulus > 0 (the modulus switches)")
       .def_property_readonly("retardation_time", &M::retardation_time, "eta / E in s")
       .def("__repr__", [](const M& mat) {
         return "Material(density=" + std::to_string(mat.density) +
@@ -52,11 +53,13 @@ dimensionless (inf for a linear link).)")
            }),
            py::arg("rest_length"), py::arg("stiffness"), py::arg("damping") = 0.0,
            py::arg("large_stiffness") = py::none(), py::arg("switch_strain") = py::none())
-      .def_readwrite("rest_length", &L::rest_length)
-      .def_readwrite("stiffness", &L::stiffness)
-      .def_readwrite("damping", &L::damping)
-      .def_readwrite("large_stiffness", &L::large_stiffness)
-      .def_readwrite("switch_strain", &L::switch_strain)
+      .def_readwrite("rest_length", &L::rest_length, "l0 (m)")
+      .def_readwrite("stiffness", &L::stiffness, "small-strain spring constant (N/m)")
+      .def_readwrite("damping", &L::damping, "dashpot constant (N s/m)")
+      .def_readwrite("large_stiffness", &L::large_stiffness,
+                     "spring constant beyond the switch strain (N/m)")
+      .def_readwrite("switch_strain", &L::switch_strain,
+                     "|strain| where the stiffness switches (inf: linear)")
       .def("elastic_force", &L::elastic_force, py::arg("extension"),
            "Elastic force (N) at an extension l - l0 (m); positive pulls the spheres together.")
       .def("energy", &L::energy, py::arg("extension"), "Elastic energy (J) at an extension (m).")

@@ -7,7 +7,9 @@ PYBIND11_MODULE(_fsm, m) {
   m.doc() = R"(libfsm: filled-sphere soft-tissue simulation (compiled core; import fsm instead).)";
   m.attr("__version__") = fsm::version;
   // fsm::Error derives from std::runtime_error; Python sees fsm.Error(RuntimeError).
-  py::register_exception<fsm::Error>(m, "Error", PyExc_RuntimeError);
+  py::register_exception<fsm::Error>(m, "Error", PyExc_RuntimeError).attr("__doc__") =
+      R"(The one exception of libfsm (a RuntimeError): its message names the file, the part or
+argument, and the reason, e.g. "instrument 'probe': friction must be non-negative".)";
   fsm::python::define_material(m);
   fsm::python::define_sphere_model(m);
   fsm::python::define_tetrahedral_mesh(m);
@@ -15,4 +17,5 @@ PYBIND11_MODULE(_fsm, m) {
   fsm::python::define_simulation(m);
   fsm::python::define_tissue_model(m);
   fsm::python::define_collision(m);
+  fsm::python::define_haptics(m);
 }

@@ -32,10 +32,12 @@ void define_simulation(py::module_& m) {
       .def_property_readonly(
           "status", [](const R& r) { return std::string(to_string(r.status)); },
           "'ok', 'recovered', 'diverged' or 'invalid_time_step'")
-      .def_readonly("substeps", &R::substeps)
-      .def_readonly("solver_iterations", &R::solver_iterations)
+      .def_readonly("substeps", &R::substeps, "sub-steps taken (2^k after k halvings; 1 normally)")
+      .def_readonly("solver_iterations", &R::solver_iterations,
+                    "linear-solver iterations (CG) summed over sub-steps; 0 for explicit schemes")
       .def_readonly("energy", &R::energy, "J after the step (nan when not checked)")
-      .def_property_readonly("advanced", &R::advanced)
+      .def_property_readonly("advanced", &R::advanced,
+                             "True when the state moved on (status 'ok' or 'recovered')")
       .def("__repr__", [](const R& r) {
         return "StepReport(status='" + std::string(to_string(r.status)) +
                "', substeps=" + std::to_string(r.substeps) + ")";
@@ -43,13 +45,15 @@ void define_simulation(py::module_& m) {
 
   using E = EnergyReport<Scalar>;
   py::class_<E>(m, "EnergyReport", "Energy account in J.")
-      .def_readonly("kinetic", &E::kinetic)
-      .def_readonly("elastic", &E::elastic)
-      .def_readonly("gravity", &E::gravity)
-      .def_readonly("external_work", &E::external_work)
-      .def_readonly("reference", &E::reference)
-      .def_property_readonly("total", &E::total)
-      .def_property_readonly("budget", &E::budget);
+      .def_readonly("kinetic", &E::kinetic, "kinetic energy 1/2 sum m v^2 (J)")
+      .def_readonly("elastic", &E::elastic, "elastic energy stored in the links (J)")
+      .def_readonly("gravity", &E::gravity, "gravitational potential energy (J)")
+      .def_readonly("external_work", &E::external_work,
+                    "work done by external forces since the reference was taken (J)")
+      .def_readonly("reference", &E::reference, "total energy when the reference was taken (J)")
+      .def_property_readonly("total", &E::total, "kinetic + elastic + gravity (J)")
+      .def_property_readonly("budget", &E::budget,
+                             "reference + external_work (J): what total may not exceed");
 
   py::class_<Sim>(m, "Simulation", R"(A SphereModel stepped in time, with divergence detection.
 
@@ -103,20 +107,25 @@ reported, never left as NaN. Raises fsm.Error for a bad model or option.)")
             assign_rows3(sim.external_forces(), v, "external_forces");
           },
           "|V| x 3 external force per node (N), a view; held until changed.")
-      .def("set_fixed", &Sim::set_fixed, py::arg("node"), py::arg("fixed") = true)
+      .def("set_fixed", &Sim::set_fixed, py::arg("node"), py::arg("fixed") = true,
+           "Fixes (or frees) a node; a fixed node's velocity is zeroed and it moves only when its "
+           "position is written.")
       .def("refresh", &Sim::refresh,
            "Re-validates and re-derives everything after editing model arrays in place.")
-      .def_property_readonly("integrator",
-                             [](Sim& sim) { return std::string(sim.integrator().name()); })
+      .def_property_readonly(
+          "integrator", [](Sim& sim) { return std::string(sim.integrator().name()); },
+          "The current scheme's name (see fsm.integrator_names()).")
       .def(
           "set_integrator",
           [](Sim& sim, const py::object& spec) { sim.set_integrator(to_integrator(spec)); },
           py::arg("integrator"), "Swaps the scheme (a name or an fsm.Integrator).")
       .def_property_readonly("stable_time_step", &Sim::stable_time_step,
                              "The integrator's largest stable step for this model (s).")
-      .def_property_readonly("spectral_bound", &Sim::spectral_bound)
+      .def_property_readonly("spectral_bound", &Sim::spectral_bound,
+                             "The model's SpectralBound (highest eigenfrequency, damping rate).")
       .def("energy", &Sim::energy, "The EnergyReport at the current state.")
-      .def("reset_energy_reference", &Sim::reset_energy_reference)
+      .def("reset_energy_reference", &Sim::reset_energy_reference,
+           "Takes the current energy as the new reference (after editing the state by hand).")
       .def_property_readonly("time", &Sim::time, "Simulated seconds.")
       .def("reset", &Sim::reset, "Back to rest, zero velocity and external force, time 0.");
 }

@@ -48,8 +48,8 @@ void column_property(py::class_<Model>& c, const char* name, Get get, const char
 
 void define_sphere_model(py::module_& m) {
   py::class_<Region<Scalar>>(m, "Region", "A named part of a model with its material.")
-      .def_readonly("name", &Region<Scalar>::name)
-      .def_readonly("material", &Region<Scalar>::material)
+      .def_readonly("name", &Region<Scalar>::name, "the region's name")
+      .def_readonly("material", &Region<Scalar>::material, "its Material")
       .def("__repr__", [](const Region<Scalar>& r) { return "Region('" + r.name + "')"; });
 
   py::class_<Model> c(m, "SphereModel", R"(Spheres joined by Voigt links, grouped into regions.
@@ -71,17 +71,22 @@ writing masses, fixed flags or link constants in place, call Simulation.refresh(
            "Adds a linear link whose rest length is the nodes' rest distance; returns its index.")
       .def("add_link", py::overload_cast<Index, Index, const VoigtLink<Scalar>&>(&Model::add_link),
            py::arg("i"), py::arg("j"), py::arg("law"), "Adds a link with a full VoigtLink law.")
-      .def("set_fixed", &Model::set_fixed, py::arg("node"), py::arg("fixed") = true)
-      .def_property_readonly("num_nodes", &Model::num_nodes)
-      .def_property_readonly("num_links", &Model::num_links)
-      .def_property_readonly("num_regions", &Model::num_regions)
-      .def_property_readonly("num_fixed", &Model::num_fixed)
-      .def_property_readonly("regions", &Model::regions)
-      .def("region_index", &Model::region_index, py::arg("name"))
+      .def("set_fixed", &Model::set_fixed, py::arg("node"), py::arg("fixed") = true,
+           "Marks a node fixed (or free); a fixed node is never integrated.")
+      .def_property_readonly("num_nodes", &Model::num_nodes, "|V|, the number of spheres")
+      .def_property_readonly("num_links", &Model::num_links, "|L|, the number of links")
+      .def_property_readonly("num_regions", &Model::num_regions, "the number of regions")
+      .def_property_readonly("num_fixed", &Model::num_fixed, "the number of fixed spheres")
+      .def_property_readonly("regions", &Model::regions, "the Regions, a list (copies)")
+      .def("region_index", &Model::region_index, py::arg("name"),
+           "The index of the region of that name; fsm.Error if there is none.")
       .def("link", &Model::link, py::arg("index"), "Link l's VoigtLink (a copy).")
-      .def("set_link", &Model::set_link, py::arg("index"), py::arg("law"))
-      .def_property_readonly("has_bilinear_links", &Model::has_bilinear_links)
-      .def("reset_to_rest", &Model::reset_to_rest)
+      .def("set_link", &Model::set_link, py::arg("index"), py::arg("law"),
+           "Replaces link l's law with a VoigtLink; fsm.Error for a bad one.")
+      .def_property_readonly("has_bilinear_links", &Model::has_bilinear_links,
+                             "True when some link switches stiffness (bilinear material)")
+      .def("reset_to_rest", &Model::reset_to_rest,
+           "Positions back to rest positions, velocities to zero.")
       .def_property_readonly("total_mass", &Model::total_mass, "kg")
       .def("distribute_region_mass", &Model::distribute_region_mass, py::arg("region"),
            py::arg("volume"), "Gives every node of the region rho V / N (V in m^3).")

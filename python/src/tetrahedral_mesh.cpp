@@ -12,10 +12,11 @@ void define_tetrahedral_mesh(py::module_& m) {
              return Mesh{vertices, tetrahedra};
            }),
            py::arg("vertices"), py::arg("tetrahedra"))
-      .def_readwrite("vertices", &Mesh::vertices)
-      .def_readwrite("tetrahedra", &Mesh::tetrahedra)
+      .def_readwrite("vertices", &Mesh::vertices, "|V| x 3 vertex positions (m)")
+      .def_readwrite("tetrahedra", &Mesh::tetrahedra, "|T| x 4 vertex indices")
       .def_property_readonly("volume", &Mesh::volume, "m^3")
-      .def("validate", &Mesh::validate, py::arg("what") = "mesh");
+      .def("validate", &Mesh::validate, py::arg("what") = "mesh",
+           "Raises fsm.Error naming `what` and the first bad vertex or tetrahedron.");
 
   m.def(
       "make_cube_lattice",
@@ -32,10 +33,10 @@ tetrahedra per cube. inside, if given, is called with each cube's centre (a leng
 keeps the cube when it returns True.)");
 
   py::class_<PartRange>(m, "PartRange", "Where a part's nodes and links landed in the model.")
-      .def_readonly("first_node", &PartRange::first_node)
-      .def_readonly("num_nodes", &PartRange::num_nodes)
-      .def_readonly("first_link", &PartRange::first_link)
-      .def_readonly("num_links", &PartRange::num_links);
+      .def_readonly("first_node", &PartRange::first_node, "index of the part's first node")
+      .def_readonly("num_nodes", &PartRange::num_nodes, "how many nodes it added")
+      .def_readonly("first_link", &PartRange::first_link, "index of the part's first link")
+      .def_readonly("num_links", &PartRange::num_links, "how many links it added");
 
   m.def("add_tetrahedral_part", &add_tetrahedral_part<Scalar>, py::arg("model"), py::arg("mesh"),
         py::arg("region"), py::arg("radius"),

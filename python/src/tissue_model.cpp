@@ -12,14 +12,14 @@ void define_tissue_model(py::module_& m) {
       .value("packing", Topology::packing);
 
   py::class_<Part>(m, "Part", "One part of a built model: its spheres, links and render surface.")
-      .def_readonly("name", &Part::name)
-      .def_readonly("topology", &Part::topology)
-      .def_readonly("region", &Part::region)
+      .def_readonly("name", &Part::name, "the part's name in the scene")
+      .def_readonly("topology", &Part::topology, "how it was filled (a Topology)")
+      .def_readonly("region", &Part::region, "its region index in the SphereModel")
       .def_readonly("radius", &Part::radius, "nominal sphere radius (m)")
-      .def_readonly("first_node", &Part::first_node)
-      .def_readonly("num_nodes", &Part::num_nodes)
-      .def_readonly("first_link", &Part::first_link)
-      .def_readonly("num_links", &Part::num_links)
+      .def_readonly("first_node", &Part::first_node, "index of its first sphere")
+      .def_readonly("num_nodes", &Part::num_nodes, "how many spheres it has")
+      .def_readonly("first_link", &Part::first_link, "index of its first link")
+      .def_readonly("num_links", &Part::num_links, "how many links it has")
       .def_readonly("surface", &Part::surface, "index into Skin.surfaces, or -1")
       .def_property_readonly(
           "nodes",
@@ -32,11 +32,11 @@ void define_tissue_model(py::module_& m) {
 
   using S = Skin<Scalar>;
   py::class_<typename S::Surface>(m, "SkinSurface", "One part's render surface within the skin.")
-      .def_readonly("name", &S::Surface::name)
-      .def_readonly("first_vertex", &S::Surface::first_vertex)
-      .def_readonly("num_vertices", &S::Surface::num_vertices)
-      .def_readonly("first_face", &S::Surface::first_face)
-      .def_readonly("num_faces", &S::Surface::num_faces);
+      .def_readonly("name", &S::Surface::name, "the part's name")
+      .def_readonly("first_vertex", &S::Surface::first_vertex, "its first row in Skin.vertices")
+      .def_readonly("num_vertices", &S::Surface::num_vertices, "how many vertices")
+      .def_readonly("first_face", &S::Surface::first_face, "its first row in Skin.faces")
+      .def_readonly("num_faces", &S::Surface::num_faces, "how many faces");
   py::class_<S>(m, "Skin", R"(Render surfaces bound to the spheres.
 
 vertices (|S| x 3, m) and faces (|F| x 3) are the rest surface (views); evaluate(positions) gives the
@@ -55,8 +55,8 @@ deformed vertices for sphere positions (|V| x 3).)")
             return view<Index>(s.rest.faces.data(), py::ssize_t(s.rest.faces.rows()), 3, self);
           },
           "faces |F| x 3 (int32), a view")
-      .def_readonly("surfaces", &S::surfaces)
-      .def_property_readonly("num_vertices", &S::num_vertices)
+      .def_readonly("surfaces", &S::surfaces, "the SkinSurfaces, one per part with a surface")
+      .def_property_readonly("num_vertices", &S::num_vertices, "|S|, render vertices in all")
       .def(
           "evaluate",
           [](const S& s, const py::array_t<Scalar, py::array::c_style | py::array::forcecast>& x) {
@@ -84,18 +84,23 @@ deformed vertices for sphere positions (|V| x 3).)")
 Load one with fsm.load_model(path) or build one with fsm.build.build_model(scene).
 model.spheres is the SphereModel (pass it to fsm.Simulation); model.skin.evaluate(positions) gives
 the deformed render surface.)")
-      .def_readonly("name", &T::name)
+      .def_readonly("name", &T::name, "the scene's name")
       .def_property_readonly(
           "spheres", [](T& t) -> SphereModel<Scalar>& { return t.spheres; },
-          py::return_value_policy::reference_internal)
-      .def_readonly("parts", &T::parts)
-      .def_readonly("first_attachment_link", &T::first_attachment_link)
-      .def_readonly("num_attachment_links", &T::num_attachment_links)
+          py::return_value_policy::reference_internal, "the SphereModel (by reference)")
+      .def_readonly("parts", &T::parts, "the Parts, in scene order")
+      .def_readonly("first_attachment_link", &T::first_attachment_link,
+                    "index of the first link joining two parts")
+      .def_readonly("num_attachment_links", &T::num_attachment_links,
+                    "how many links join parts (they follow first_attachment_link)")
       .def_property_readonly(
-          "skin", [](T& t) -> S& { return t.skin; }, py::return_value_policy::reference_internal)
+          "skin", [](T& t) -> S& { return t.skin; }, py::return_value_policy::reference_internal,
+          "the Skin (by reference)")
       .def_readonly("report_json", &T::report_json, "the builder's report (JSON text)")
-      .def("part", &T::part, py::arg("name"), py::return_value_policy::reference_internal)
-      .def("validate", &T::validate)
+      .def("part", &T::part, py::arg("name"), py::return_value_policy::reference_internal,
+           "The Part of that name; fsm.Error if there is none.")
+      .def("validate", &T::validate,
+           "Raises fsm.Error for anything inconsistent (parts, links, skin).")
       .def("__repr__", [](const T& t) {
         return "TissueModel('" + t.name + "', " + std::to_string(t.parts.size()) + " parts, " +
                std::to_string(t.spheres.num_nodes()) + " spheres)";

@@ -1,0 +1,444 @@
+// fsm-demo: the main job. Loads the bundled procedural uterus (building and caching it on first
+// run), prints a Table-1-like report, then runs a scripted laparoscopic session through the whole
+// pipeline — the 1 kHz servo loop (scripted device, virtual coupling, contacts, implicit Euler) on
+// one thread and the render side (snapshots, skinning) on another — and reports frame and servo
+// statistics. Writes PNG renders (rest, deformed), the frame-rate plot and the deformed surface.
+//
+//   fsm-demo [--seconds S] [--out DIR] [--model FILE.fsm|SCENE.json] [--json] [--no-render]
+//
+// Field names of --json: docs/demo.md.
+
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <numeric>
+#include <string>
+#include <thread>
+
+#include "../common/gl_scene.hpp"
+#include "fsm/build/builder.hpp"
+#include "fsm/collision/triangle_bvh.hpp"
+#include "fsm/fsm.hpp"
+#include "fsm/haptics/scripted_device.hpp"
+#include "fsm/haptics/servo_loop.hpp"
+#include "fsm/implicit_euler_integrator.hpp"
+#include "fsm/model_file.hpp"
+#include "offscreen.hpp"
+
+using namespace fsm;
+using namespace fsm::haptics;
+using V3 = Vector3<double>;
+
+namespace {
+
+struct Args {
+  double seconds{21};
+  std::string out{"fsm-demo-out"};
+  std::string model;
+  bool json{false};
+  bool render{true};
+};
+
+Args parse(int argc, char** argv) {
+  Args a;
+  for (int i = 1; i < argc; ++i) {
+    const std::string s = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc) throw Error("", "fsm-demo", s + " needs a value");
+      return argv[++i];
+    };
+    if (s == "--seconds") {
+      a.seconds = std::atof(value().c_str());
+      if (!(a.seconds >= 2)) throw Error("", "fsm-demo", "--seconds must be at least 2");
+    } else if (s == "--out") {
+      a.out = value();
+    } else if (s == "--model") {
+      a.model = value();
+    } else if (s == "--json") {
+      a.json = true;
+    } else if (s == "--no-render") {
+      a.render = false;
+    } else if (s == "--help" || s == "-h") {
+      std::printf(
+          "usage: fsm-demo [--seconds S] [--out DIR] [--model FILE.fsm|SCENE.json] [--json] "
+          "[--no-render]\n"
+          "  --seconds S   simulated session length (default 21; every part is probed once per 21 "
+          "s)\n"
+          "  --out DIR     where renders, the plot, the deformed OBJ and stats.json go (default "
+          "fsm-demo-out)\n"
+          "  --model F     a model file, or a scene to build (default: the bundled uterus, "
+          "cached)\n"
+          "  --json        print the statistics as JSON (docs/demo.md)\n"
+          "  --no-render   skip the PNG renders\n");
+      std::exit(0);
+    } else {
+      throw Error("", "fsm-demo", "unknown argument '" + s + "' (try --help)");
+    }
+  }
+  return a;
+}
+
+double mtime(const std::string& path) {
+  struct stat st {};
+  return stat(path.c_str(), &st) == 0 ? double(st.st_mtime) : -1;
+}
+
+std::string cache_dir() {
+  if (const char* d = std::getenv("FSM_CACHE_DIR")) return d;
+  if (const char* d = std::getenv("XDG_CACHE_HOME")) return std::string(d) + "/fsm";
+  if (const char* d = std::getenv("HOME")) return std::string(d) + "/.cache/fsm";
+  return ".fsm-cache";
+}
+
+void make_dirs(const std::string& path) {
+  std::string p;
+  for (std::size_t i = 0; i <= path.size(); ++i) {
+    if (i == path.size() || path[i] == '/') {
+      if (!p.empty()) mkdir(p.c_str(), 0755);
+    }
+    if (i < path.size()) p += path[i];
+  }
+}
+
+// The bundled uterus, built on first run and cached (rebuilt when the scene or a mesh is newer).
+TissueModel<double> load_or_build(const Args& a, std::string& source, bool& built,
+                                  double& build_s) {
+  const auto t0 = std::chrono::steady_clock::now();
+  built = false;
+  if (!a.model.empty() && a.model.size() > 5 && a.model.substr(a.model.size() - 5) == ".json") {
+    source = a.model;
+    built = true;
+    TissueModel<double> m = build::build_model(a.model);
+    build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return m;
+  }
+  if (!a.model.empty()) {
+    source = a.model;
+    return load_model(a.model);
+  }
+  const char* data = std::getenv("FSM_DATA_DIR");
+  const std::string dir =
+      data != nullptr ? std::string(data) : std::string(FSM_SOURCE_DIR) + "/data";
+  const std::string scene = dir + "/uterus/uterus.json";
+  const std::string cached = cache_dir() + "/uterus.fsm";
+  double newest = mtime(scene);
+  for (const char* m : {"body", "fibroid", "ovary_left", "ovary_right", "ligament_left",
+                        "ligament_right", "tube_left", "tube_right"})
+    newest = std::max(newest, mtime(dir + "/uterus/" + m + ".off"));
+  if (mtime(cached) >= newest && newest > 0) {
+    try {
+      source = cached;
+      return load_model(cached);
+    } catch (const Error&) {
+      // stale or corrupt cache (e.g. an older format): rebuild below
+    }
+  }
+  source = scene;
+  built = true;
+  TissueModel<double> m = build::build_model(scene);
+  build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  try {
+    make_dirs(cache_dir());
+    save_model(cached, m);
+  } catch (const Error& e) {
+    std::fprintf(stderr, "fsm-demo: could not cache the model (%s); continuing\n", e.what());
+  }
+  return m;
+}
+
+// Where the instrument presses a part: its sphere farthest from the model's centre, along the
+// outward direction. The capsule's -z end is the tip; the pose is its centre.
+struct Target {
+  std::string part;
+  Eigen::Quaterniond orientation;
+  V3 pressed, away;
+};
+
+Target target(const TissueModel<double>& model, const std::string& part, double half_length,
+              double radius, double depth) {
+  const SphereModel<double>& m = model.spheres;
+  const Part& p = model.part(part);
+  const V3 centre = m.rest_positions().colwise().mean().transpose();
+  Index best = p.first_node;
+  double far = -1;
+  for (Index i = p.first_node; i < p.first_node + p.num_nodes; ++i) {
+    const double d = (m.rest_positions().row(i).transpose() - centre).norm();
+    if (d > far) {
+      far = d;
+      best = i;
+    }
+  }
+  const V3 x = m.rest_positions().row(best).transpose();
+  const V3 out = (x - centre).normalized();
+  Target t;
+  t.part = part;
+  t.orientation = Eigen::Quaterniond::FromTwoVectors(V3::UnitZ(), out);
+  const V3 tip_pressed = x + out * (m.radii()[best] - depth);
+  t.pressed = tip_pressed + out * (half_length + radius);
+  t.away = t.pressed + out * 0.015;
+  return t;
+}
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, std::size_t(q * double(v.size() - 1) + 0.5))];
+}
+
+void write_obj(const std::string& path, const TissueModel<double>& model,
+               const Positions<double>& v) {
+  std::ofstream f(path);
+  if (!f) throw Error(path, "OBJ", "cannot write");
+  f << "# fsm-demo: the deformed uterus surface (m)\n";
+  for (Index i = 0; i < v.rows(); ++i)
+    f << "v " << v(i, 0) << ' ' << v(i, 1) << ' ' << v(i, 2) << '\n';
+  for (const Part& p : model.parts) {
+    if (p.surface < 0) continue;
+    const auto& s = model.skin.surfaces[std::size_t(p.surface)];
+    f << "g " << p.name << '\n';
+    for (Index k = s.first_face; k < s.first_face + s.num_faces; ++k)
+      f << "f " << model.skin.rest.faces(k, 0) + 1 << ' ' << model.skin.rest.faces(k, 1) + 1 << ' '
+        << model.skin.rest.faces(k, 2) + 1 << '\n';
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    const Args args = parse(argc, argv);
+    make_dirs(args.out);
+    std::string source;
+    bool built = false;
+    double build_s = 0;
+    const TissueModel<double> model = load_or_build(args, source, built, build_s);
+
+    // ---- Table-1-like report.
+    const std::pair<const char*, int> paper[] = {
+        {"body", 517},        {"fibroid", 39},       {"ovary_left", 29}, {"ovary_right", 29},
+        {"ligament_left", 9}, {"ligament_right", 9}, {"tube_left", 31},  {"tube_right", 31}};
+    if (!args.json) {
+      std::printf("fsm-demo: %s (%s%s)\n", model.name.c_str(), source.c_str(),
+                  built ? (", built in " + std::to_string(build_s).substr(0, 4) + " s").c_str()
+                        : ", cached");
+      std::printf("  %-15s %-12s %8s %8s %10s %8s\n", "part", "filling", "spheres", "links",
+                  "radius mm", "paper");
+      for (const Part& p : model.parts) {
+        int ref = 0;
+        for (const auto& [n, c] : paper)
+          if (p.name == n) ref = c;
+        std::printf("  %-15s %-12s %8d %8d %10.2f %8d\n", p.name.c_str(), to_string(p.topology),
+                    int(p.num_nodes), int(p.num_links), p.radius * 1e3, ref);
+      }
+      std::printf("  %-15s %-12s %8d %8d %10s %8d\n", "total", "", int(model.spheres.num_nodes()),
+                  int(model.spheres.num_links()), "", 694);
+    }
+
+    // ---- The session: simulation, contacts, instrument, scripted device, servo loop.
+    Simulation<double>::Options so;
+    so.forces.drag = 5;  // the surrounding tissue and fluid (docs/physics.md section 9)
+    Simulation<double> sim(model.spheres, so);
+    // CG to a relative residual of 1e-3: on this model it moves the state by < 0.1 um against
+    // 1e-6 and costs a third of the iterations (docs/benchmarks.md, servo loop).
+    ImplicitEulerIntegrator<double>::Options io;
+    io.tolerance = 1e-3;
+    sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
+    collision::ContactSolver<double> contacts(sim.model());
+    const double shaft_r = 0.0025, half = 0.02;
+    collision::Instrument<double> tool;
+    tool.name = "probe";
+    tool.shape = collision::CapsuleShape<double>{shaft_r, half};
+    const Index k = contacts.add_instrument(tool);
+
+    const std::vector<std::string> visit = {"body",          "fibroid",       "ovary_left",
+                                            "ovary_right",   "tube_left",     "tube_right",
+                                            "ligament_left", "ligament_right"};
+    std::vector<Waypoint> script;
+    double t = 0;
+    const double slot = (args.seconds - 1.0) / double(visit.size());
+    {
+      const Target first = target(model, visit[0], half, shaft_r, 0.003);
+      script.push_back({0.0, first.away, first.orientation, 0});
+      t = 1.0;  // settle under gravity
+      script.push_back({t, first.away, first.orientation, 0});
+    }
+    for (const std::string& part : visit) {
+      const Target tg =
+          target(model, part, half, shaft_r, part == "body" || part == "fibroid" ? 0.004 : 0.0025);
+      script.push_back({t + 0.25 * slot, tg.away, tg.orientation, 0});
+      script.push_back({t + 0.5 * slot, tg.pressed, tg.orientation, 1});
+      script.push_back({t + 0.7 * slot, tg.pressed, tg.orientation, 1});
+      script.push_back({t + 0.95 * slot, tg.away, tg.orientation, 0});
+      t += slot;
+    }
+    ScriptedHapticDevice device(script, DeviceLimits{}, std::size_t(args.seconds * 1000) + 64);
+    ServoOptions o;
+    o.max_recorded_ticks = std::size_t(args.seconds * 1000) + 64;
+    ServoLoop loop(sim, contacts, k, device, o);
+
+    // Render side (this thread): snapshots at 60 Hz, skinning, normals, BVH refit (for picking).
+    auto ws = model.skin.make_workspace();
+    Positions<double> surface = model.skin.rest.vertices, peak_surface = surface, normals = surface;
+    collision::TriangleBvh<double> bvh(model.skin.rest.vertices, model.skin.rest.faces);
+    ServoSnapshot snap, peak_snap;
+    double peak = -1;
+    std::vector<double> skin_times;
+    loop.start();
+    const auto start = std::chrono::steady_clock::now();
+    for (int frame = 0;; ++frame) {
+      std::this_thread::sleep_until(start + std::chrono::microseconds(16667 * (frame + 1)));
+      if (loop.read_snapshot(snap)) {
+        const auto s0 = std::chrono::steady_clock::now();
+        model.skin.evaluate(snap.positions, ws, surface);
+        compute_vertex_normals<double>(surface, model.skin.rest.faces, normals);
+        bvh.refit(surface);
+        skin_times.push_back(
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - s0).count());
+        if (snap.tissue_force.norm() > peak) {
+          peak = snap.tissue_force.norm();
+          peak_snap = snap;
+          peak_surface = surface;
+        }
+      }
+      if (snap.time >= args.seconds - 2e-3 || !loop.running()) break;
+    }
+    loop.stop();
+    const ServoStats st = loop.stats();
+
+    // ---- Whole-frame rate, as the paper's Fig. 9: physics for 1/60 s (17 steps at 1 kHz,
+    // contacts included) plus skinning, per frame of simulated time.
+    const auto& steps = loop.step_times();
+    const double skin_mean = skin_times.empty()
+                                 ? 0
+                                 : std::accumulate(skin_times.begin(), skin_times.end(), 0.0) /
+                                       double(skin_times.size());
+    std::vector<double> frame_hz, frame_t;
+    const std::size_t per_frame = 17;
+    for (std::size_t i = 0; i + per_frame <= steps.size(); i += per_frame) {
+      double sum = skin_mean;
+      for (std::size_t j = i; j < i + per_frame; ++j) sum += double(steps[j]);
+      frame_hz.push_back(1.0 / sum);
+      frame_t.push_back(double(i) / 1000.0);
+    }
+    const double fmin = frame_hz.empty() ? 0 : *std::min_element(frame_hz.begin(), frame_hz.end());
+    const double fmed = percentile(frame_hz, 0.5);
+    const double fmax = frame_hz.empty() ? 0 : *std::max_element(frame_hz.begin(), frame_hz.end());
+
+    // ---- Outputs.
+    write_obj(args.out + "/deformed.obj", model, peak_surface);
+    {
+      std::ofstream f(args.out + "/frame_rate.csv");
+      f << "time_s,whole_frame_hz\n";
+      for (std::size_t i = 0; i < frame_hz.size(); ++i)
+        f << frame_t[i] << ',' << frame_hz[i] << '\n';
+    }
+    if (args.render) {
+      examples::OffscreenContext gl(960, 720);
+      examples::OrbitCamera cam = examples::frame_model(model);
+      examples::SceneFrame rest;
+      rest.model = &model;
+      rest.caption =
+          "libfsm: uterus at rest (" + std::to_string(model.spheres.num_nodes()) + " spheres)";
+      examples::draw_scene(rest, cam, gl.width(), gl.height());
+      examples::write_png(args.out + "/rest.png", examples::read_pixels(gl.width(), gl.height()),
+                          gl.width(), gl.height());
+      examples::SceneFrame def;
+      def.model = &model;
+      def.surface = &peak_surface;
+      def.has_instrument = true;
+      def.instrument = peak_snap.instrument;
+      def.instrument_radius = shaft_r;
+      def.instrument_half_length = half;
+      def.force = peak_snap.tissue_force;
+      def.arrow_scale = 0.015;
+      char cap[160];
+      std::snprintf(cap, sizeof cap, "deformed at t = %.2f s, instrument force %.3f N",
+                    peak_snap.time, peak);
+      def.caption = cap;
+      // Look at the pressed point from the side the instrument comes from.
+      examples::OrbitCamera c2 = cam;
+      const V3 dir = peak_snap.instrument.orientation * V3::UnitZ();
+      c2.yaw = std::atan2(dir.y(), dir.x()) + 0.5;
+      c2.pitch = std::clamp(std::asin(std::clamp(dir.z(), -1.0, 1.0)), -0.3, 1.0) + 0.25;
+      examples::draw_scene(def, c2, gl.width(), gl.height());
+      examples::write_png(args.out + "/deformed.png",
+                          examples::read_pixels(gl.width(), gl.height()), gl.width(), gl.height());
+      examples::PlotSeries s;
+      s.x = frame_t;
+      s.y = frame_hz;
+      s.label = "libfsm whole frame";
+      examples::PlotSeries p40{{0, frame_t.empty() ? 1.0 : frame_t.back()},
+                               {40, 40},
+                               {0.8f, 0.2f, 0.2f},
+                               "paper: 40-60 Hz"};
+      examples::PlotSeries p60{
+          {0, frame_t.empty() ? 1.0 : frame_t.back()}, {60, 60}, {0.8f, 0.2f, 0.2f}, ""};
+      examples::draw_plot({s, p40, p60},
+                          "Whole-frame rate (physics 1/60 s at 1 kHz + contacts + skinning)",
+                          "time (s)", "Hz", gl.width(), gl.height(), true);
+      examples::write_png(args.out + "/frame_rate.png",
+                          examples::read_pixels(gl.width(), gl.height()), gl.width(), gl.height());
+    }
+
+    char json[2048];
+    std::snprintf(
+        json, sizeof json,
+        "{\"model\": \"%s\", \"spheres\": %d, \"links\": %d, \"surface_vertices\": %d, "
+        "\"simulated_s\": %.3f, "
+        "\"frames\": %zu, \"frame_hz_min\": %.1f, \"frame_hz_median\": %.1f, \"frame_hz_max\": "
+        "%.1f, "
+        "\"skinning_us_mean\": %.1f, \"servo_ticks\": %zu, \"servo_missed_deadlines\": %zu, "
+        "\"servo_period_p50_us\": %.1f, \"servo_period_p99_us\": %.1f, \"servo_period_max_us\": "
+        "%.1f, "
+        "\"servo_period_error_p99_us\": %.1f, \"step_p50_us\": %.1f, \"step_p99_us\": %.1f, "
+        "\"step_max_us\": %.1f, "
+        "\"watchdog_trips\": %zu, \"diverged_steps\": %zu, \"peak_instrument_force_N\": %.4f, "
+        "\"peak_commanded_force_N\": %.4f, \"out\": \"%s\"}",
+        model.name.c_str(), int(model.spheres.num_nodes()), int(model.spheres.num_links()),
+        int(model.skin.num_vertices()), snap.time, frame_hz.size(), fmin, fmed, fmax,
+        skin_mean * 1e6, st.ticks, st.missed_deadlines, st.period_p50 * 1e6, st.period_p99 * 1e6,
+        st.period_max * 1e6, st.period_error_p99 * 1e6, st.step_p50 * 1e6, st.step_p99 * 1e6,
+        st.step_max * 1e6, st.watchdog_trips, st.diverged_steps, peak, st.peak_force,
+        args.out.c_str());
+    {
+      std::ofstream f(args.out + "/stats.json");
+      f << json << '\n';
+    }
+    if (args.json) {
+      std::printf("%s\n", json);
+    } else {
+      std::printf(
+          "session: %.1f s simulated, every part probed (body, fibroid, ovaries, tubes, "
+          "ligaments)\n",
+          snap.time);
+      std::printf(
+          "  whole frame (physics 1/60 s at 1 kHz + contacts + skinning): min %.0f Hz, median %.0f "
+          "Hz, "
+          "max %.0f Hz (paper: 40-60 Hz)\n",
+          fmin, fmed, fmax);
+      std::printf(
+          "  servo loop: %zu ticks, period p50 %.1f us, p99 %.1f us, max %.1f us, missed deadlines "
+          "%zu\n",
+          st.ticks, st.period_p50 * 1e6, st.period_p99 * 1e6, st.period_max * 1e6,
+          st.missed_deadlines);
+      std::printf(
+          "  simulation step (contacts + implicit Euler): p50 %.0f us, p99 %.0f us, max %.0f us\n",
+          st.step_p50 * 1e6, st.step_p99 * 1e6, st.step_max * 1e6);
+      std::printf("  skinning (%d vertices) + normals + BVH refit: %.0f us per frame\n",
+                  int(model.skin.num_vertices()), skin_mean * 1e6);
+      std::printf(
+          "  peak instrument force %.3f N (commanded to the device: %.3f N); watchdog trips %zu\n",
+          peak, st.peak_force, st.watchdog_trips);
+      std::printf("  wrote %s/{%sdeformed.obj,frame_rate.csv,stats.json}\n", args.out.c_str(),
+                  args.render ? "rest.png,deformed.png,frame_rate.png," : "");
+    }
+    return 0;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fsm-demo: %s\n", e.what());
+    return 1;
+  }
+}

@@ -1,0 +1,191 @@
+#pragma once
+
+/// @file haptics/servo_loop.hpp
+/// @brief ServoLoop: a haptic device coupled to a Simulation through a virtual coupling, at 1 kHz,
+/// with a force clamp, a force ramp-in and a watchdog; lock-free snapshots for the render side.
+
+#include <atomic>
+#include <chrono>
+#include <functional>
+#include <memory>
+#include <thread>
+#include <vector>
+
+#include "fsm/collision/contact.hpp"
+#include "fsm/detail/triple_buffer.hpp"
+#include "fsm/haptics/haptic_device.hpp"
+#include "fsm/simulation.hpp"
+
+namespace fsm::haptics {
+
+/// @brief How the loop runs and couples.
+struct ServoOptions {
+  /// Servo rate (Hz); the simulation steps at h = 1/rate.
+  double rate{1000};
+  /// How the device tick and the simulation step share threads:
+  /// `lockstep`: one thread does both every period (deterministic: the same force curve in real
+  /// time as in run_fast()); a watchdog thread watches it. `decoupled`: the device tick runs on
+  /// its own (in the device's scheduler when it has one, else in a thread) and the simulation in
+  /// another thread; the tick evaluates the virtual coupling against the latest proxy state, which
+  /// is the local model that keeps the force smooth when a step is late.
+  enum class Threading { lockstep, decoupled } threading{Threading::lockstep};
+
+  /// Virtual coupling between the device tip and the instrument (the proxy): a spring (N/m) and
+  /// a damper (N s/m). The device feels \f$k_c(x_p - x_d) + b_c(v_p - v_d)\f$; the proxy, of mass
+  /// `proxy_mass` (kg), feels the opposite plus the tissue's contact force, integrated implicitly
+  /// in the coupling. A stiffer coupling feels crisper and needs a device that can render it (the
+  /// Touch: about 1 N/mm at most).
+  double coupling_stiffness{400};
+  double coupling_damping{4};
+  double proxy_mass{0.02};
+
+  /// Force clamp (N); 0 uses the device's limit. The smaller of this and the device's applies.
+  double max_force{0};
+  /// The force ramps in linearly over this time (s) after start.
+  double ramp_time{0.25};
+  /// The force goes to zero when the simulation has not completed a step for this long (s), or
+  /// when a step diverges (the simulation rolls it back).
+  double watchdog_timeout{1.5e-3};
+  /// After a trip, the force ramps in again once the simulation has stepped healthily for this
+  /// long (s); 0 keeps it at zero until rearm().
+  double recover_time{0.1};
+
+  /// Device frame to simulation frame: x_sim = device_offset + device_scale * device_rotation *
+  /// x_device (m). Forces are rotated back (not scaled).
+  Vector3<double> device_offset{Vector3<double>::Zero()};
+  Eigen::Quaterniond device_rotation{Eigen::Quaterniond::Identity()};
+  double device_scale{1};
+
+  /// Ticks whose timing is kept for stats() (allocated up front); later ticks are not recorded.
+  std::size_t max_recorded_ticks{180000};
+};
+
+/// @brief Timing and safety figures of a run (s unless named otherwise).
+struct ServoStats {
+  std::size_t ticks{0};             ///< device ticks run
+  std::size_t steps{0};             ///< simulation steps run
+  std::size_t missed_deadlines{0};  ///< ticks that started a full period or more late
+  double period_p50{0}, period_p99{0}, period_max{0};  ///< time between tick starts
+  double period_error_p99{0}, period_error_max{0};     ///< |period - 1/rate|
+  double step_p50{0}, step_p99{0}, step_max{0};        ///< simulation step (contacts + step)
+  std::size_t watchdog_trips{0};                       ///< times the watchdog zeroed the force
+  std::size_t diverged_steps{0};                       ///< steps the simulation rolled back
+  double peak_force{0};                                ///< largest commanded force magnitude (N)
+};
+
+/// @brief What the render side reads: the newest state the simulation published.
+struct ServoSnapshot {
+  double time{0};                                            ///< servo time of the step (s)
+  Positions<double> positions;                               ///< sphere centres (m), |V| x 3
+  collision::Pose<double> instrument;                        ///< the proxy's pose
+  Vector3<double> device_position{Vector3<double>::Zero()};  ///< device tip, simulation frame (m)
+  Vector3<double> force{Vector3<double>::Zero()};         ///< last commanded force, sim frame (N)
+  Vector3<double> tissue_force{Vector3<double>::Zero()};  ///< contact force on the instrument (N)
+};
+
+/// @brief Couples a HapticDevice to a Simulation at the servo rate.
+///
+/// Each device tick: read the device at the nominal tick time, map it into the simulation frame,
+/// evaluate the coupling force against the proxy, apply the safety chain (watchdog, ramp, clamp)
+/// and command the force. Each simulation step: move the proxy under coupling and tissue forces,
+/// pose the instrument on it, compute contacts into the simulation's external forces, step, and
+/// publish a snapshot. Neither allocates nor throws; the device tick takes no lock.
+///
+/// The simulation, the contact solver and the device must outlive the loop and must not be touched
+/// by others while it runs (read snapshots instead).
+class ServoLoop {
+ public:
+  /// @param sim the simulation to step (its external forces are overwritten every step)
+  /// @param contacts the contact solver for sim's model
+  /// @param instrument the instrument of `contacts` the device drives
+  /// @param device the device
+  ServoLoop(Simulation<double>& sim, collision::ContactSolver<double>& contacts, Index instrument,
+            HapticDevice& device, const ServoOptions& options = {});
+  ~ServoLoop();
+  ServoLoop(const ServoLoop&) = delete;
+  ServoLoop& operator=(const ServoLoop&) = delete;
+
+  /// @brief Runs `seconds` of servo time as fast as possible in the calling thread (lockstep, no
+  /// watchdog: there is no wall clock to miss). Starts and stops the device.
+  void run_fast(double seconds);
+  /// @brief Runs `seconds` in real time and returns when done (threads as options().threading).
+  void run_real_time(double seconds);
+  /// @brief Starts real-time running in the background; stop() ends it.
+  void start();
+  /// @brief Stops a background run, zeroes the force and stops the device. Never throws.
+  void stop() noexcept;
+  [[nodiscard]] bool running() const noexcept { return m_running.load(); }
+
+  /// @brief True after the watchdog or a diverged step zeroed the force.
+  [[nodiscard]] bool tripped() const noexcept { return m_tripped.load(); }
+  /// @brief Clears a trip now; the force ramps in again.
+  void rearm() noexcept;
+
+  /// @brief Copies the newest snapshot into `out` if there is one newer than the last read
+  /// (render thread only; lock-free). Returns whether `out` changed.
+  bool read_snapshot(ServoSnapshot& out);
+  /// @brief Timing and safety figures so far (call when not running, or accept a racy read of
+  /// the counters).
+  [[nodiscard]] ServoStats stats() const;
+  [[nodiscard]] const ServoOptions& options() const noexcept { return m_options; }
+  /// @brief Duration (s) of each simulation step of the last run, in order (up to
+  /// options().max_recorded_ticks; read when not running).
+  [[nodiscard]] const std::vector<float>& step_times() const noexcept { return m_step_times; }
+
+  /// @brief A function called inside every simulation step with the servo time (s): for tests
+  /// (inject a stall) and for scripted loads. Set before running.
+  void set_step_hook(std::function<void(double)> hook) { m_hook = std::move(hook); }
+
+ private:
+  using Clock = std::chrono::steady_clock;
+  struct DeviceSample {
+    double time{0};
+    Vector3<double> position{Vector3<double>::Zero()}, velocity{Vector3<double>::Zero()};
+    Eigen::Quaterniond orientation{Eigen::Quaterniond::Identity()};
+  };
+  struct ProxySample {
+    Vector3<double> position{Vector3<double>::Zero()}, velocity{Vector3<double>::Zero()};
+  };
+
+  void begin();
+  void end() noexcept;
+  void device_tick(double t) noexcept;
+  void physics_step(double t) noexcept;
+  void lockstep_thread(double seconds) noexcept;
+  void haptic_thread(double seconds) noexcept;
+  void physics_thread(double seconds) noexcept;
+  void watchdog_thread() noexcept;
+  void trip() noexcept;
+  static void wait_until(Clock::time_point deadline) noexcept;
+  [[nodiscard]] double now() const noexcept;
+
+  Simulation<double>& m_sim;
+  collision::ContactSolver<double>& m_contacts;
+  Index m_instrument;
+  HapticDevice& m_device;
+  ServoOptions m_options;
+  double m_period;
+  double m_max_force{0};
+  std::function<void(double)> m_hook;
+
+  detail::TripleBuffer<DeviceSample> m_device_buffer;
+  detail::TripleBuffer<ProxySample> m_proxy_buffer;
+  detail::TripleBuffer<ServoSnapshot> m_snapshots;
+  ProxySample m_proxy;  // physics side
+  Vector3<double> m_last_force{Vector3<double>::Zero()};
+
+  std::atomic<bool> m_running{false}, m_stop{false}, m_tripped{false};
+  std::atomic<std::int64_t> m_heartbeat_ns{0};  // when the last step completed (ns since m_t0)
+  Clock::time_point m_t0;
+  std::atomic<double> m_rearm_time{0};
+  std::vector<std::thread> m_threads;
+
+  // Stats (each written by one thread).
+  std::vector<float> m_periods, m_step_times;
+  std::atomic<std::size_t> m_ticks{0}, m_steps{0}, m_missed{0}, m_trips{0}, m_diverged{0};
+  std::atomic<std::size_t> m_healthy_steps{0};
+  std::atomic<double> m_peak{0};
+  Clock::time_point m_last_tick_start;
+};
+
+}  // namespace fsm::haptics

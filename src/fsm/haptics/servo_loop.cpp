@@ -1,0 +1,387 @@
+// ServoLoop: device tick, proxy and simulation step, safety chain, timing.
+
+#include "fsm/haptics/servo_loop.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "fsm/error.hpp"
+
+namespace fsm::haptics {
+
+namespace {
+
+double percentile(std::vector<float> v, double q) {
+  if (v.empty()) return 0;
+  const std::size_t k = std::min(v.size() - 1, std::size_t(q * double(v.size() - 1) + 0.5));
+  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(k), v.end());
+  return double(v[k]);
+}
+
+void atomic_max(std::atomic<double>& a, double value) noexcept {
+  double old = a.load(std::memory_order_relaxed);
+  while (value > old && !a.compare_exchange_weak(old, value, std::memory_order_relaxed)) {
+  }
+}
+
+}  // namespace
+
+ServoLoop::ServoLoop(Simulation<double>& sim, collision::ContactSolver<double>& contacts,
+                     Index instrument, HapticDevice& device, const ServoOptions& options)
+    : m_sim(sim),
+      m_contacts(contacts),
+      m_instrument(instrument),
+      m_device(device),
+      m_options(options),
+      m_period(1.0 / options.rate),
+      m_snapshots([&] {
+        ServoSnapshot s;
+        s.positions = sim.model().positions();
+        return s;
+      }()) {
+  const auto& o = m_options;
+  auto positive = [](double x) { return std::isfinite(x) && x > 0; };
+  if (!positive(o.rate) || !positive(o.proxy_mass) || !(o.coupling_stiffness >= 0) ||
+      !(o.coupling_damping >= 0) || !std::isfinite(o.coupling_stiffness) ||
+      !std::isfinite(o.coupling_damping) || !(o.max_force >= 0) || !(o.ramp_time >= 0) ||
+      !positive(o.watchdog_timeout) || !positive(o.device_scale) || !o.device_offset.allFinite() ||
+      !(o.device_rotation.norm() > 0))
+    throw Error("", "servo loop options",
+                "rate, proxy_mass, watchdog_timeout and device_scale must be positive and finite; "
+                "gains, max_force and ramp_time non-negative; the rotation non-zero");
+  if (o.watchdog_timeout <= m_period)
+    throw Error("", "servo loop options", "watchdog_timeout must exceed one servo period");
+  if (instrument < 0 || instrument >= contacts.num_instruments())
+    throw Error("", "servo loop", "instrument " + std::to_string(instrument) + " does not exist");
+  m_options.device_rotation.normalize();
+  m_periods.reserve(o.max_recorded_ticks);
+  m_step_times.reserve(o.max_recorded_ticks);
+}
+
+ServoLoop::~ServoLoop() {
+  stop();
+}
+
+double ServoLoop::now() const noexcept {
+  return std::chrono::duration<double>(Clock::now() - m_t0).count();
+}
+
+void ServoLoop::wait_until(Clock::time_point deadline) noexcept {
+  // Sleep to within 200 us, then spin: sleeps overshoot by 50-100 us on a stock kernel.
+  const auto margin = std::chrono::microseconds(200);
+  if (Clock::now() + margin < deadline) std::this_thread::sleep_until(deadline - margin);
+  while (Clock::now() < deadline) std::this_thread::yield();
+}
+
+void ServoLoop::begin() {
+  if (m_running.exchange(true)) throw Error("", "servo loop", "already running");
+  try {
+    m_device.start();
+  } catch (...) {
+    m_running = false;
+    throw;
+  }
+  const DeviceLimits lim = m_device.limits();
+  m_max_force =
+      m_options.max_force > 0 ? std::min(m_options.max_force, lim.max_force) : lim.max_force;
+  m_stop = false;
+  m_tripped = false;
+  m_rearm_time = 0;
+  m_periods.clear();
+  m_step_times.clear();
+  m_ticks = m_steps = m_missed = m_trips = m_diverged = 0;
+  m_healthy_steps = 0;
+  m_peak = 0;
+  // The proxy starts at the device.
+  const DeviceState s = m_device.read(0.0);
+  DeviceSample& d = m_device_buffer.back();
+  d.time = 0;
+  d.position =
+      m_options.device_offset + m_options.device_scale * (m_options.device_rotation * s.position);
+  d.velocity.setZero();
+  d.orientation = m_options.device_rotation * s.orientation;
+  m_device_buffer.publish();
+  m_proxy.position = d.position;
+  m_proxy.velocity.setZero();
+  m_proxy_buffer.back() = m_proxy;
+  m_proxy_buffer.publish();
+  m_last_force.setZero();
+  m_t0 = Clock::now();
+  m_last_tick_start = m_t0;
+  m_heartbeat_ns = 0;
+}
+
+void ServoLoop::end() noexcept {
+  m_stop = true;
+  if (m_device.has_scheduler()) m_device.stop_scheduler();
+  for (auto& t : m_threads)
+    if (t.joinable()) t.join();
+  m_threads.clear();
+  m_device.apply_force(Vector3<double>::Zero());
+  m_device.stop();
+  m_running = false;
+}
+
+void ServoLoop::trip() noexcept {
+  m_healthy_steps.store(0, std::memory_order_relaxed);
+  if (!m_tripped.exchange(true)) {
+    m_device.apply_force(Vector3<double>::Zero());
+    ++m_trips;
+  }
+}
+
+void ServoLoop::rearm() noexcept {
+  m_rearm_time = m_running ? now() : 0.0;
+  m_healthy_steps = 0;
+  m_tripped = false;
+}
+
+void ServoLoop::device_tick(double t) noexcept {
+  const DeviceState s = m_device.read(t);
+  const ServoOptions& o = m_options;
+  // Recovery: after recover_time of healthy steps since a trip, ramp in again.
+  if (m_tripped.load(std::memory_order_acquire) && o.recover_time > 0 &&
+      double(m_healthy_steps.load(std::memory_order_relaxed)) * m_period >= o.recover_time) {
+    m_rearm_time.store(t, std::memory_order_relaxed);
+    m_tripped.store(false, std::memory_order_release);
+  }
+  DeviceSample& d = m_device_buffer.back();
+  d.time = t;
+  d.position = o.device_offset + o.device_scale * (o.device_rotation * s.position);
+  d.velocity = o.device_scale * (o.device_rotation * s.linear_velocity);
+  d.orientation = o.device_rotation * s.orientation;
+  const DeviceSample sample = d;
+  m_device_buffer.publish();
+
+  m_proxy_buffer.update();
+  const ProxySample& p = m_proxy_buffer.front();
+  Vector3<double> f = o.coupling_stiffness * (p.position - sample.position) +
+                      o.coupling_damping * (p.velocity - sample.velocity);
+  // Safety chain: a tripped loop commands zero; the force ramps in after start and after rearm();
+  // the clamp is the smaller of ours and the device's.
+  const double since = t - m_rearm_time.load(std::memory_order_relaxed);
+  const double ramp = o.ramp_time > 0 ? std::clamp(since / o.ramp_time, 0.0, 1.0) : 1.0;
+  if (m_tripped.load(std::memory_order_acquire) || !f.allFinite()) f.setZero();
+  f *= ramp;
+  const double n = f.norm();
+  if (n > m_max_force) f *= m_max_force / n;
+  if (m_tripped.load(std::memory_order_acquire)) f.setZero();
+  const Vector3<double> commanded = m_device.apply_force(o.device_rotation.conjugate() * f);
+  m_last_force = o.device_rotation * commanded;
+  atomic_max(m_peak, commanded.norm());
+  ++m_ticks;
+}
+
+void ServoLoop::physics_step(double t) noexcept {
+  const auto start = Clock::now();
+  if (m_hook) m_hook(t);
+  m_device_buffer.update();
+  const DeviceSample& d = m_device_buffer.front();
+  const ServoOptions& o = m_options;
+  const double h = m_period;
+  // Proxy: m dv/dt = k (x_d - x) + b (v_d - v) + f_tissue, the coupling implicit:
+  // v' (m + h b + h^2 k) = m v + h (k (x_d - x) + b v_d + f_tissue).
+  auto& ins = m_contacts.instrument(m_instrument);
+  const Vector3<double> tissue = m_contacts.wrench(m_instrument).force;
+  const double k = o.coupling_stiffness, b = o.coupling_damping, m = o.proxy_mass;
+  Vector3<double> v =
+      (m * m_proxy.velocity + h * (k * (d.position - m_proxy.position) + b * d.velocity + tissue)) /
+      (m + h * b + h * h * k);
+  if (!v.allFinite()) v.setZero();
+  m_proxy.velocity = v;
+  m_proxy.position += h * v;
+  ins.pose.position = m_proxy.position;
+  ins.pose.orientation = d.orientation;
+  ins.linear_velocity = v;
+  ins.angular_velocity.setZero();
+
+  m_sim.external_forces().setZero();
+  m_contacts.compute(m_sim.model(), m_sim.external_forces());
+  const StepReport report = m_sim.step(h);
+  if (!report.advanced()) {
+    ++m_diverged;
+    trip();
+  } else {
+    m_healthy_steps.fetch_add(1, std::memory_order_relaxed);
+  }
+  m_proxy_buffer.back() = m_proxy;
+  m_proxy_buffer.publish();
+
+  ServoSnapshot& s = m_snapshots.back();
+  s.time = t;
+  s.positions = m_sim.model().positions();  // same size: no allocation
+  s.instrument = ins.pose;
+  s.device_position = d.position;
+  s.force = m_last_force;
+  s.tissue_force = m_contacts.wrench(m_instrument).force;
+  m_snapshots.publish();
+
+  const auto end = Clock::now();
+  m_heartbeat_ns.store(std::chrono::duration_cast<std::chrono::nanoseconds>(end - m_t0).count(),
+                       std::memory_order_release);
+  if (m_step_times.size() < m_step_times.capacity())
+    m_step_times.push_back(std::chrono::duration<float>(end - start).count());
+  ++m_steps;
+}
+
+void ServoLoop::run_fast(double seconds) {
+  begin();
+  const auto ticks = std::int64_t(std::llround(seconds * m_options.rate));
+  for (std::int64_t k = 0; k < ticks; ++k) {
+    const double t = double(k) * m_period;
+    device_tick(t);
+    physics_step(t);
+  }
+  end();
+}
+
+void ServoLoop::lockstep_thread(double seconds) noexcept {
+  const auto period =
+      std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(m_period));
+  for (std::int64_t k = 0; !m_stop.load(std::memory_order_relaxed); ++k) {
+    const double t = double(k) * m_period;
+    if (seconds > 0 && t >= seconds) break;
+    const auto deadline = m_t0 + k * period;
+    wait_until(deadline);
+    const auto start = Clock::now();
+    if (k > 0 && m_periods.size() < m_periods.capacity())
+      m_periods.push_back(std::chrono::duration<float>(start - m_last_tick_start).count());
+    if (start - deadline >= period) ++m_missed;
+    m_last_tick_start = start;
+    device_tick(t);
+    physics_step(t);
+  }
+}
+
+void ServoLoop::haptic_thread(double seconds) noexcept {
+  const auto period =
+      std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(m_period));
+  const auto timeout = std::chrono::duration<double>(m_options.watchdog_timeout);
+  for (std::int64_t k = 0; !m_stop.load(std::memory_order_relaxed); ++k) {
+    const double t = double(k) * m_period;
+    if (seconds > 0 && t >= seconds) break;
+    const auto deadline = m_t0 + k * period;
+    wait_until(deadline);
+    const auto start = Clock::now();
+    if (k > 0 && m_periods.size() < m_periods.capacity())
+      m_periods.push_back(std::chrono::duration<float>(start - m_last_tick_start).count());
+    if (start - deadline >= period) ++m_missed;
+    m_last_tick_start = start;
+    // Decoupled: the tick is its own watchdog.
+    const auto beat =
+        m_t0 + std::chrono::nanoseconds(m_heartbeat_ns.load(std::memory_order_acquire));
+    if (k > 0 && start - beat > timeout) trip();
+    device_tick(t);
+  }
+  m_stop = true;
+}
+
+void ServoLoop::physics_thread(double seconds) noexcept {
+  const auto period =
+      std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(m_period));
+  for (std::int64_t k = 0; !m_stop.load(std::memory_order_relaxed); ++k) {
+    const double t = double(k) * m_period;
+    if (seconds > 0 && t >= seconds) break;
+    wait_until(m_t0 + k * period + period / 2);  // half a period after the tick that feeds it
+    physics_step(t);
+  }
+}
+
+void ServoLoop::watchdog_thread() noexcept {
+  const auto timeout = std::chrono::duration<double>(m_options.watchdog_timeout);
+  while (!m_stop.load(std::memory_order_relaxed)) {
+    std::this_thread::sleep_for(std::chrono::microseconds(250));
+    const auto beat =
+        m_t0 + std::chrono::nanoseconds(m_heartbeat_ns.load(std::memory_order_acquire));
+    // Before the first step completes the heartbeat is the start time.
+    if (Clock::now() - beat > timeout) trip();
+  }
+}
+
+void ServoLoop::start() {
+  begin();
+  try {
+    if (m_options.threading == ServoOptions::Threading::lockstep) {
+      m_threads.emplace_back([this] { lockstep_thread(0); });
+      m_threads.emplace_back([this] { watchdog_thread(); });
+    } else {
+      m_threads.emplace_back([this] { physics_thread(0); });
+      if (m_device.has_scheduler()) {
+        auto k = std::make_shared<std::int64_t>(0);
+        m_device.run_scheduler([this, k] {
+          if (m_stop.load(std::memory_order_relaxed)) return false;
+          const auto beat =
+              m_t0 + std::chrono::nanoseconds(m_heartbeat_ns.load(std::memory_order_acquire));
+          if (*k > 0 &&
+              Clock::now() - beat > std::chrono::duration<double>(m_options.watchdog_timeout))
+            trip();
+          device_tick(double((*k)++) * m_period);
+          return true;
+        });
+      } else {
+        m_threads.emplace_back([this] { haptic_thread(0); });
+      }
+    }
+  } catch (...) {
+    end();
+    throw;
+  }
+}
+
+void ServoLoop::run_real_time(double seconds) {
+  begin();
+  try {
+    if (m_options.threading == ServoOptions::Threading::lockstep) {
+      std::thread watchdog([this] { watchdog_thread(); });
+      lockstep_thread(seconds);
+      m_stop = true;
+      watchdog.join();
+    } else {
+      std::thread physics([this, seconds] { physics_thread(seconds); });
+      haptic_thread(seconds);
+      m_stop = true;
+      physics.join();
+    }
+  } catch (...) {
+    end();
+    throw;
+  }
+  end();
+}
+
+void ServoLoop::stop() noexcept {
+  if (!m_running.load()) return;
+  end();
+}
+
+bool ServoLoop::read_snapshot(ServoSnapshot& out) {
+  if (!m_snapshots.update()) return false;
+  out = m_snapshots.front();
+  return true;
+}
+
+ServoStats ServoLoop::stats() const {
+  ServoStats s;
+  s.ticks = m_ticks;
+  s.steps = m_steps;
+  s.missed_deadlines = m_missed;
+  s.watchdog_trips = m_trips;
+  s.diverged_steps = m_diverged;
+  s.peak_force = m_peak;
+  s.period_p50 = percentile(m_periods, 0.5);
+  s.period_p99 = percentile(m_periods, 0.99);
+  s.period_max =
+      m_periods.empty() ? 0 : double(*std::max_element(m_periods.begin(), m_periods.end()));
+  std::vector<float> err(m_periods.size());
+  for (std::size_t i = 0; i < err.size(); ++i) err[i] = std::abs(m_periods[i] - float(m_period));
+  s.period_error_p99 = percentile(err, 0.99);
+  s.period_error_max = err.empty() ? 0 : double(*std::max_element(err.begin(), err.end()));
+  s.step_p50 = percentile(m_step_times, 0.5);
+  s.step_p99 = percentile(m_step_times, 0.99);
+  s.step_max = m_step_times.empty()
+                   ? 0
+                   : double(*std::max_element(m_step_times.begin(), m_step_times.end()));
+  return s;
+}
+
+}  // namespace fsm::haptics

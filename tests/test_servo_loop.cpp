@@ -1,0 +1,248 @@
+// ServoLoop: a scripted probe into a block gives the same force curve in real time as run fast;
+// the force never exceeds the limit; the ramp; the watchdog zeroes the force during an injected
+// stall; a diverging simulation trips it; snapshots reach a reader thread.
+
+#include <mutex>
+#include <thread>
+
+#include "common.hpp"
+#include "fsm/haptics/scripted_device.hpp"
+#include "fsm/haptics/servo_loop.hpp"
+
+namespace fsm::test {
+namespace {
+
+using namespace fsm::haptics;
+using namespace fsm::collision;
+using V3 = Vector3<double>;
+
+struct Scene {
+  Simulation<double> sim;
+  ContactSolver<double> contacts;
+  Index tool{0};
+
+  explicit Scene(const std::string& integrator = "implicit_euler", double E = 13150)
+      : sim(make_block(E), options(integrator)), contacts(sim.model()) {
+    Instrument<double> ins;
+    ins.name = "probe";
+    ins.shape = SphereShape<double>{0.003};
+    tool = contacts.add_instrument(ins);
+  }
+  static SphereModel<double> make_block(double E) {
+    SphereModel<double> m = block<double>({4, 4, 2}, 0.005, tissue<double>(E));
+    for (Index i = 0; i < m.num_nodes(); ++i)
+      if (m.rest_positions()(i, 2) < 1e-9) m.set_fixed(i);
+    return m;
+  }
+  static Simulation<double>::Options options(const std::string& integrator) {
+    Simulation<double>::Options o;
+    o.integrator = integrator;
+    o.forces.drag = 5;
+    return o;
+  }
+};
+
+// Down onto the top centre (top at z = 10 mm), 2 mm into the block, held, then slid sideways.
+std::vector<Waypoint> probe_script() {
+  return {{0.0, V3(0.01, 0.01, 0.016), Eigen::Quaterniond::Identity(), 0},
+          {0.4, V3(0.01, 0.01, 0.011), Eigen::Quaterniond::Identity(), 0},
+          {0.7, V3(0.01, 0.01, 0.011), Eigen::Quaterniond::Identity(), 1},
+          {1.0, V3(0.012, 0.01, 0.011), Eigen::Quaterniond::Identity(), 0}};
+}
+
+TEST(ServoLoop, RealTimeAndFastGiveTheSameForceCurve) {
+  Scene fast_scene, rt_scene;
+  ScriptedHapticDevice fast_dev(probe_script()), rt_dev(probe_script());
+  ServoLoop fast(fast_scene.sim, fast_scene.contacts, fast_scene.tool, fast_dev);
+  fast.run_fast(1.2);
+  // A generous watchdog: a shared test machine may pause the thread for a few ms (the real-time
+  // figures are the benchmark's business, not this test's).
+  ServoOptions o;
+  o.watchdog_timeout = 0.05;
+  ServoLoop rt(rt_scene.sim, rt_scene.contacts, rt_scene.tool, rt_dev, o);
+  rt.run_real_time(1.2);
+  const auto a = fast_dev.forces(), b = rt_dev.forces();
+  // Both end with the zero of stop(); compare the ticks (a real-time watchdog trip would differ).
+  ASSERT_EQ(rt.stats().watchdog_trips, 0u) << "the machine stalled the loop for > 50 ms";
+  ASSERT_EQ(a.size(), b.size());
+  ASSERT_GE(a.size(), 1200u);
+  double peak = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    ASSERT_EQ(a[i].time, b[i].time) << i;
+    ASSERT_EQ(a[i].force, b[i].force) << "tick " << i;  // bit for bit: the loop is deterministic
+    peak = std::max(peak, a[i].force.norm());
+  }
+  EXPECT_GT(peak, 0.05);  // the probe really pressed (N)
+  EXPECT_EQ(fast.stats().ticks, 1200u);
+  EXPECT_EQ(fast.stats().steps, 1200u);
+  // The force pushes the device up, out of the tissue.
+  EXPECT_GT(a[600].force.z(), 0.0);
+}
+
+TEST(ServoLoop, ForceNeverExceedsTheLimitAndRampsIn) {
+  Scene s;
+  DeviceLimits lim;
+  lim.max_force = 0.08;
+  // Deep: 6 mm into the block (would take far more than 0.08 N).
+  ScriptedHapticDevice dev({{0.0, V3(0.01, 0.01, 0.012), Eigen::Quaterniond::Identity(), 0},
+                            {0.3, V3(0.01, 0.01, 0.004), Eigen::Quaterniond::Identity(), 0}},
+                           lim);
+  ServoOptions o;
+  o.max_force = 0.5;  // the device's 0.08 is smaller: it wins
+  ServoLoop loop(s.sim, s.contacts, s.tool, dev, o);
+  loop.run_fast(0.8);
+  double peak = 0;
+  for (const auto& f : dev.forces()) peak = std::max(peak, f.force.norm());
+  EXPECT_LE(peak, 0.08 + 1e-12);
+  EXPECT_GT(peak, 0.079);  // it saturated
+  EXPECT_NEAR(loop.stats().peak_force, peak, 1e-12);
+
+  // Ramp: the same run with and without the ramp; before ramp_time the ratio is t / ramp_time.
+  Scene s1, s2;
+  const std::vector<Waypoint> inside = {
+      {0.0, V3(0.01, 0.01, 0.0125), Eigen::Quaterniond::Identity(), 0},
+      {0.05, V3(0.01, 0.01, 0.0105), Eigen::Quaterniond::Identity(), 0}};
+  ScriptedHapticDevice d1(inside), d2(inside);
+  ServoOptions ramp, none;
+  ramp.ramp_time = 0.1;
+  none.ramp_time = 0;
+  ServoLoop l1(s1.sim, s1.contacts, s1.tool, d1, ramp), l2(s2.sim, s2.contacts, s2.tool, d2, none);
+  l1.run_fast(0.15);
+  l2.run_fast(0.15);
+  const auto f1 = d1.forces(), f2 = d2.forces();
+  // The proxy's motion depends on the coupling, not on the ramp (the ramp scales only what the
+  // device is commanded), so the runs are comparable tick by tick.
+  for (std::size_t i = 10; i < 100; i += 10) {
+    ASSERT_GT(f2[i].force.norm(), 0) << i;
+    EXPECT_NEAR(f1[i].force.norm() / f2[i].force.norm(), f1[i].time / 0.1, 1e-9) << i;
+  }
+  EXPECT_EQ(f1[120].force, f2[120].force);
+}
+
+// A device that records the wall-clock time of every command (test only: takes a lock).
+class TimedDevice final : public HapticDevice {
+ public:
+  explicit TimedDevice(std::vector<Waypoint> w) : m_script(std::move(w)) {}
+  std::string name() const override { return "timed"; }
+  DeviceLimits limits() const override { return {}; }
+  DeviceState read(double t) noexcept override { return m_script.state_at(t); }
+  Vector3<double> apply_force(const Vector3<double>& f) noexcept override {
+    std::lock_guard<std::mutex> lock(m_mutex);
+    m_log.push_back({std::chrono::steady_clock::now(), f});
+    return f;
+  }
+  std::vector<std::pair<std::chrono::steady_clock::time_point, V3>> log() {
+    std::lock_guard<std::mutex> lock(m_mutex);
+    return m_log;
+  }
+
+ private:
+  ScriptedHapticDevice m_script;
+  std::mutex m_mutex;
+  std::vector<std::pair<std::chrono::steady_clock::time_point, V3>> m_log;
+};
+
+TEST(ServoLoop, WatchdogZeroesTheForceDuringAStall) {
+  Scene s;
+  TimedDevice dev(probe_script());
+  ServoOptions o;
+  o.recover_time = 0.05;
+  o.watchdog_timeout = 0.02;  // above the hiccups of a shared machine, far below the stall
+  ServoLoop loop(s.sim, s.contacts, s.tool, dev, o);
+  std::chrono::steady_clock::time_point stall_begin, stall_end;
+  loop.set_step_hook([&](double t) {
+    if (std::abs(t - 0.6) < 1e-9) {  // the probe is pressing: a non-zero force is being commanded
+      stall_begin = std::chrono::steady_clock::now();
+      std::this_thread::sleep_for(std::chrono::milliseconds(200));
+      stall_end = std::chrono::steady_clock::now();
+    }
+  });
+  loop.run_real_time(1.0);
+  const auto log = dev.log();
+  // The last command before the stall was a real force; during the stall (while the servo thread
+  // was stuck in the step) someone — the watchdog — commanded zero.
+  V3 before = V3::Zero();
+  bool zeroed_during = false;
+  for (const auto& [when, f] : log) {
+    if (when < stall_begin) before = f;
+    if (when > stall_begin && when < stall_end && f == V3::Zero()) zeroed_during = true;
+  }
+  EXPECT_GT(before.norm(), 0.01);
+  EXPECT_TRUE(zeroed_during);
+  EXPECT_GE(loop.stats().watchdog_trips, 1u);
+  // It recovered after recover_time and the force came back.
+  EXPECT_FALSE(loop.tripped());
+  EXPECT_GT(log[log.size() - 2].second.norm(), 0.0);
+}
+
+TEST(ServoLoop, DivergingSimulationTripsToZeroForce) {
+  // Heun at 1 ms on a block 500 times stiffer than tissue: far beyond its stable step.
+  Scene s("heun", 13150 * 500);
+  ScriptedHapticDevice dev(probe_script());
+  ServoOptions o;
+  o.ramp_time = 0;
+  o.recover_time = 0;  // stay down
+  ServoLoop loop(s.sim, s.contacts, s.tool, dev, o);
+  loop.run_fast(0.8);
+  EXPECT_GT(loop.stats().diverged_steps, 0u);
+  EXPECT_TRUE(loop.tripped());
+  EXPECT_TRUE(s.sim.model().positions().allFinite());  // rolled back, never NaN
+  EXPECT_EQ(dev.forces().back().force, V3::Zero());
+}
+
+TEST(ServoLoop, SnapshotsReachTheRenderThread) {
+  Scene s;
+  ScriptedHapticDevice dev(probe_script());
+  ServoLoop loop(s.sim, s.contacts, s.tool, dev);
+  loop.start();
+  EXPECT_THROW(loop.start(), Error);  // already running
+  ServoSnapshot snap;
+  double last = -1;
+  int fresh = 0;
+  const auto until = std::chrono::steady_clock::now() + std::chrono::milliseconds(400);
+  while (std::chrono::steady_clock::now() < until) {
+    if (loop.read_snapshot(snap)) {
+      ++fresh;
+      EXPECT_GT(snap.time, last);
+      last = snap.time;
+      ASSERT_EQ(snap.positions.rows(), s.sim.model().num_nodes());
+      ASSERT_TRUE(snap.positions.allFinite());
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(16));
+  }
+  loop.stop();
+  EXPECT_FALSE(loop.running());
+  EXPECT_GT(fresh, 5);
+  EXPECT_EQ(dev.last_force(), V3::Zero());  // stop() zeroes the force
+}
+
+TEST(ServoLoop, DecoupledThreadsRunAndStop) {
+  Scene s;
+  ScriptedHapticDevice dev(probe_script());
+  ServoOptions o;
+  o.threading = ServoOptions::Threading::decoupled;
+  o.watchdog_timeout = 0.05;
+  ServoLoop loop(s.sim, s.contacts, s.tool, dev, o);
+  loop.run_real_time(0.6);
+  const ServoStats st = loop.stats();
+  EXPECT_GE(st.ticks, 590u);
+  EXPECT_GE(st.steps, 500u);
+  double peak = 0;
+  for (const auto& f : dev.forces()) peak = std::max(peak, f.force.norm());
+  EXPECT_GT(peak, 0.01);
+}
+
+TEST(ServoLoop, RejectsBadOptions) {
+  Scene s;
+  ScriptedHapticDevice dev;
+  ServoOptions o;
+  o.rate = 0;
+  EXPECT_THROW(ServoLoop(s.sim, s.contacts, s.tool, dev, o), Error);
+  o = ServoOptions{};
+  o.watchdog_timeout = 0.5e-3;  // shorter than a period
+  EXPECT_THROW(ServoLoop(s.sim, s.contacts, s.tool, dev, o), Error);
+  EXPECT_THROW(ServoLoop(s.sim, s.contacts, 7, dev), Error);
+}
+
+}  // namespace
+}  // namespace fsm::test

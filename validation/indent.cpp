@@ -1,0 +1,297 @@
+// fsm-indent: the paper's indentation experiment (REFERENCE.md section 6) on a model built by the
+// library's own builder from a scene, for the validation against a reference FEM
+// (docs/validation.md).
+//
+//   fsm-indent SCENE.json --case compression|punch [--depth MM] [--speed MM_PER_MIN]
+//              [--samples N] [--dt S] [--integrator NAME] [--stiffness-scale F]
+//              [--poisson NU | --kappa PA] [--density-scale F] [--out CSV]
+//
+// The scene's single part is a 20 x 20 x 10 mm block (z up). Its lowest layer of spheres is fixed
+// (bottom bonded); the loaded spheres are held in x and y and moved down at the given speed
+// (bonded tool): "compression" = the top layer (a platen over the whole top), "punch" = the top
+// spheres within 2 mm of the top's centre in x and y (a 4 x 4 mm flat punch). The force on the
+// tool (the sum of the z forces of the links, and of the volume term, on the loaded spheres) is
+// sampled at `samples` equal steps of the displacement (at 5 mm/min to 2.5 mm, 30 samples = 1 Hz).
+// Gravity is off (the reference has none). Prints a JSON summary on stdout.
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "../src/build/fillings.hpp"  // the filling's tetrahedra, for the volume term
+#include "fsm/build/builder.hpp"
+#include "fsm/build/mesh_io.hpp"
+#include "fsm/build/scene.hpp"
+#include "fsm/fsm.hpp"
+#include "fsm/volume_term.hpp"
+
+namespace {
+
+struct Args {
+  std::string scene;
+  std::string load_case = "compression";
+  double depth = 2.5e-3;     // m
+  double speed = 5e-3 / 60;  // m/s
+  int samples = 30;          //
+  double dt = 1e-3;          // s
+  double dt_fraction = 0;    // > 0: dt = this x the stable step, capped at dt
+  std::string integrator = "implicit_euler";
+  double stiffness_scale = 1;  //
+  double poisson = 0;          // 0 = no volume term
+  double kappa = -1;           // Pa; < 0 = from poisson
+  double density_scale = 1;    //
+  std::string out;
+};
+
+[[noreturn]] void usage(const std::string& why) {
+  std::fprintf(stderr,
+               "fsm-indent: %s\n"
+               "usage: fsm-indent SCENE.json --case compression|punch [--depth MM] [--speed "
+               "MM_PER_MIN] [--samples N] [--dt S] [--integrator NAME] [--stiffness-scale F] "
+               "[--poisson NU | --kappa PA] [--density-scale F] [--out CSV]\n",
+               why.c_str());
+  std::exit(2);
+}
+
+Args parse(int argc, char** argv) {
+  Args a;
+  for (int i = 1; i < argc; ++i) {
+    const std::string k = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc) usage("missing value after " + k);
+      return argv[++i];
+    };
+    if (k == "--case")
+      a.load_case = value();
+    else if (k == "--depth")
+      a.depth = std::atof(value().c_str()) * 1e-3;
+    else if (k == "--speed")
+      a.speed = std::atof(value().c_str()) * 1e-3 / 60;
+    else if (k == "--samples")
+      a.samples = std::atoi(value().c_str());
+    else if (k == "--dt")
+      a.dt = std::atof(value().c_str());
+    else if (k == "--dt-fraction")
+      a.dt_fraction = std::atof(value().c_str());
+    else if (k == "--integrator")
+      a.integrator = value();
+    else if (k == "--stiffness-scale")
+      a.stiffness_scale = std::atof(value().c_str());
+    else if (k == "--poisson")
+      a.poisson = std::atof(value().c_str());
+    else if (k == "--kappa")
+      a.kappa = std::atof(value().c_str());
+    else if (k == "--density-scale")
+      a.density_scale = std::atof(value().c_str());
+    else if (k == "--out")
+      a.out = value();
+    else if (k == "--help" || k == "-h")
+      usage("help");
+    else if (!k.empty() && k[0] == '-')
+      usage("unknown option " + k);
+    else
+      a.scene = k;
+  }
+  if (a.scene.empty()) usage("no scene");
+  if (a.load_case != "compression" && a.load_case != "punch") usage("bad --case " + a.load_case);
+  if (!(a.depth > 0) || !(a.speed > 0) || !(a.dt > 0) || a.samples < 1 ||
+      !(a.stiffness_scale > 0) || !(a.density_scale > 0))
+    usage("depth, speed, dt, samples, scales must be positive");
+  return a;
+}
+
+// JSON has no inf or NaN: null instead.
+std::string json_number(double x) {
+  if (!std::isfinite(x)) return "null";
+  char b[32];
+  std::snprintf(b, sizeof b, "%.6g", x);
+  return b;
+}
+
+int run(const Args& a) {
+  using namespace fsm;
+  const build::Scene scene = build::load_scene(a.scene);
+  if (scene.parts.size() != 1) usage("the scene must have exactly one part");
+  build::BuildReport report;
+  TissueModel<double> tissue = build::build_model(a.scene, &report);
+  SphereModel<double>& model = tissue.spheres;
+  const Index n = model.num_nodes();
+
+  // The global calibration factor multiplies every link's constants (stiffness and damping, so
+  // the retardation time is unchanged).
+  model.stiffness() *= a.stiffness_scale;
+  model.large_stiffness() *= a.stiffness_scale;
+  model.damping() *= a.stiffness_scale;
+  model.masses() *= a.density_scale;
+
+  // The block's extent from the rest positions.
+  const auto rest = model.rest_positions();
+  const double zmin = rest.col(2).minCoeff(), zmax = rest.col(2).maxCoeff();
+  const double cx = 0.5 * (rest.col(0).minCoeff() + rest.col(0).maxCoeff());
+  const double cy = 0.5 * (rest.col(1).minCoeff() + rest.col(1).maxCoeff());
+  const double tol = 1e-6;  // m: surface vertices of the filling lie on the box faces
+  std::vector<Index> driven;
+  for (Index i = 0; i < n; ++i) {
+    model.set_fixed(i, rest(i, 2) <= zmin + tol);  // the lowest layer, whatever the scene fixed
+    if (rest(i, 2) >= zmax - tol) {
+      const bool in_punch =
+          std::abs(rest(i, 0) - cx) <= 2e-3 + tol && std::abs(rest(i, 1) - cy) <= 2e-3 + tol;
+      if (a.load_case == "compression" || in_punch) {
+        driven.push_back(i);
+        model.set_fixed(i);
+      }
+    }
+  }
+  if (driven.empty()) throw Error(a.scene, "", "no sphere under the tool");
+
+  // Optional volume term on the filling's tetrahedra (tetrahedral parts only): the builder does
+  // not keep them, so the filling is redone (Mesh_3 is seeded: the same mesh) and checked.
+  VolumeTerm<double> volume;
+  double kappa = 0;
+  if (a.poisson > 0 || a.kappa > 0) {
+    const build::PartSpec& spec = scene.parts[0];
+    if (spec.topology != Topology::tetrahedral)
+      throw Error(a.scene, spec.name, "the volume term needs a tetrahedral part");
+    const auto surface = build::read_mesh(spec.meshes[0], spec.mesh_scale);
+    const auto metric = spec.metric ? spec.metric : build::isotropic_metric(spec.radius);
+    const auto filling =
+        build::detail::fill_tetrahedral(surface, *metric, spec.optimiser, spec.name);
+    if (filling.mesh.vertices.rows() != n ||
+        (filling.mesh.vertices - Positions<double>(rest)).cwiseAbs().maxCoeff() > 1e-12)
+      throw Error(a.scene, spec.name, "refilling did not reproduce the model's spheres");
+    // kappa for the target Poisson's ratio at the network's (scaled) shear modulus.
+    kappa = a.kappa >= 0 ? a.kappa
+                         : VolumeTerm<double>::bulk_modulus_for(
+                               spec.material.youngs_modulus * a.stiffness_scale, a.poisson);
+    volume = VolumeTerm<double>(filling.mesh.tetrahedra, rest, kappa);
+  }
+
+  Simulation<double>::Options opt;
+  opt.integrator = a.integrator;
+  opt.forces.gravity.setZero();
+  Simulation<double> sim(std::move(model), opt);
+  const double omega_v2 = volume.num_tetrahedra() > 0
+                              ? volume.omega_max_squared(sim.model().masses(), sim.model().fixed())
+                              : 0.0;
+
+  // The step: dt, or a fraction of the largest stable step of the scheme (Simulation's estimate)
+  // and of the explicit volume term (h omega_V < 2), whichever is smaller.
+  double dt = a.dt;
+  if (a.dt_fraction > 0) {
+    double limit = double(sim.stable_time_step());
+    if (omega_v2 > 0) limit = std::min(limit, 2.0 / std::sqrt(omega_v2));
+    if (std::isfinite(limit)) dt = std::min(dt, a.dt_fraction * limit);
+  }
+  const double t_end = a.depth / a.speed;
+  const long steps = std::lround(std::ceil(t_end / dt - 1e-9));
+  std::vector<double> sample_d, sample_f;
+  sample_d.push_back(0);
+  sample_f.push_back(0);
+  int next_sample = 1, diverged = 0, recovered = 0;
+  double step_seconds = 0, volume_seconds = 0;
+  Positions<double> link_force(n, 3);
+
+  // Force on the tool: the internal forces on the loaded spheres (links + volume term), in z.
+  auto tool_force = [&]() {
+    const auto& m = sim.model();
+    const auto x = m.positions();
+    const auto v = m.velocities();
+    const auto L = m.links();
+    link_force.setZero();
+    for (Index l = 0; l < m.num_links(); ++l) {
+      const Index i = L(l, 0), j = L(l, 1);
+      const Vector3<double> f =
+          m.link(l).force(x.row(i).transpose(), x.row(j).transpose(), v.row(i).transpose(),
+                          v.row(j).transpose(), sim.forces().options().damping);
+      link_force.row(i) += f.transpose();
+      link_force.row(j) -= f.transpose();
+    }
+    if (volume.num_tetrahedra() > 0) volume.add_forces(x, link_force);
+    double fz = 0;
+    for (Index i : driven) fz += link_force(i, 2);
+    return fz;  // the tissue pushes the tool up: positive in compression
+  };
+
+  std::vector<double> step_times;  // s; the median is robust to other load on the machine
+  step_times.reserve(std::size_t(steps));
+  bool finite = true;
+  for (long s = 1; s <= steps; ++s) {
+    const double t = std::min(t_end, double(s) * dt);
+    const double d = a.speed * t;
+    auto x = sim.model().positions();
+    for (Index i : driven) x(i, 2) = sim.model().rest_positions()(i, 2) - d;
+    const auto t0 = std::chrono::steady_clock::now();
+    if (volume.num_tetrahedra() > 0) {
+      auto fe = sim.external_forces();
+      fe.setZero();
+      volume.add_forces(sim.model().positions(), fe);
+    }
+    const auto t1 = std::chrono::steady_clock::now();
+    const StepReport<double> r = sim.step(dt);
+    const auto t2 = std::chrono::steady_clock::now();
+    volume_seconds += std::chrono::duration<double>(t1 - t0).count();
+    step_seconds += std::chrono::duration<double>(t2 - t0).count();
+    step_times.push_back(std::chrono::duration<double>(t2 - t0).count());
+    diverged += r.status == StepStatus::diverged;
+    recovered += r.status == StepStatus::recovered;
+    if (!sim.model().positions().allFinite()) {
+      finite = false;
+      break;
+    }
+    while (next_sample <= a.samples &&
+           d >= a.depth * double(next_sample) / a.samples - 1e-12 * a.depth) {
+      sample_d.push_back(d);
+      sample_f.push_back(tool_force());
+      ++next_sample;
+    }
+  }
+
+  if (!a.out.empty()) {
+    std::ofstream f(a.out);
+    if (!f) throw Error(a.out, "", "cannot write");
+    f << "displacement_mm,force_N\n";
+    char line[96];
+    for (std::size_t k = 0; k < sample_d.size(); ++k) {
+      std::snprintf(line, sizeof line, "%.6f,%.6g\n", sample_d[k] * 1e3, sample_f[k]);
+      f << line;
+    }
+  }
+  const auto& q = report.parts[0].quality;
+  std::nth_element(step_times.begin(), step_times.begin() + long(step_times.size() / 2),
+                   step_times.end());
+  const double median_step = step_times.empty() ? 0.0 : step_times[step_times.size() / 2];
+  std::printf(
+      "{\"scene\": \"%s\", \"topology\": \"%s\", \"case\": \"%s\", \"integrator\": \"%s\", "
+      "\"dt\": %.6g, \"spheres\": %d, \"links\": %d, \"tetrahedra\": %d, \"fixed\": %d, "
+      "\"driven\": %zu, \"stiffness_scale\": %.6g, \"kappa\": %.6g, \"poisson\": %.4g, "
+      "\"steps\": %ld, \"diverged\": %d, \"recovered\": %d, \"finite\": %s, "
+      "\"mean_step_us\": %.4g, \"median_step_us\": %.4g, \"volume_term_us\": %.4g, \"omega_max\": "
+      "%.6g, "
+      "\"omega_volume\": %.6g, \"stable_dt\": %s, \"mean_edge_m\": %.6g, "
+      "\"final_force_N\": %s, \"samples\": %zu}\n",
+      a.scene.c_str(), to_string(tissue.parts[0].topology), a.load_case.c_str(),
+      a.integrator.c_str(), dt, sim.model().num_nodes(), sim.model().num_links(), q.tetrahedra,
+      sim.model().num_fixed(), driven.size(), a.stiffness_scale, kappa, a.poisson, steps, diverged,
+      recovered, finite ? "true" : "false", 1e6 * step_seconds / double(steps), 1e6 * median_step,
+      1e6 * volume_seconds / double(steps), sim.spectral_bound().omega_max, std::sqrt(omega_v2),
+      json_number(double(sim.stable_time_step())).c_str(), q.mean_edge,
+      json_number(sample_f.back()).c_str(), sample_d.size());
+  return finite && diverged == 0 ? 0 : 3;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Args a = parse(argc, argv);
+  try {
+    return run(a);
+  } catch (const fsm::Error& e) {
+    std::fprintf(stderr, "fsm-indent: %s\n", e.what());
+    return 1;
+  }
+}
