@@ -2,7 +2,7 @@
 # libfsm's one entry point for people and CI. On a fresh Debian 12 machine (as root, or with sudo)
 # it installs whatever is missing, configures, builds and runs.
 #
-#   tools/dev.sh demo [ARGS...]   the main job (ARGS go to the demo)
+#   tools/dev.sh demo [ARGS...]   the main job: fsm-demo, the uterus session (ARGS go to it)
 #   tools/dev.sh test             every test: GoogleTest suite, packaging, benchmark smoke runs
 #   tools/dev.sh bench [ARGS...]  the benchmarks, full length (ARGS go to Google Benchmark)
 #   tools/dev.sh charts           measure (benchmarks + integrator accuracy) into docs/data and
@@ -58,7 +58,7 @@ case "$cmd" in
   demo)
     install_deps
     build
-    exec "$BUILD_DIR/examples/fsm-poke-block" "$@"
+    exec "$BUILD_DIR/examples/fsm-demo" "$@"
     ;;
   test)
     install_deps
@@ -71,6 +71,7 @@ case "$cmd" in
     for b in "$BUILD_DIR"/bench/bench_*; do
       [ -x "$b" ] && "$b" "$@"
     done
+    "$BUILD_DIR/bench/servo_latency" --seconds 30
     ;;
   charts)
     install_deps

@@ -354,7 +354,6 @@ int main(int argc, char** argv) {
       def.instrument_radius = shaft_r;
       def.instrument_half_length = half;
       def.force = peak_snap.tissue_force;
-      def.arrow_scale = 0.015;
       char cap[160];
       std::snprintf(cap, sizeof cap, "deformed at t = %.2f s, instrument force %.3f N",
                     peak_snap.time, peak);
@@ -362,7 +361,10 @@ int main(int argc, char** argv) {
       // Look at the pressed point from the side the instrument comes from.
       examples::OrbitCamera c2 = cam;
       const V3 dir = peak_snap.instrument.orientation * V3::UnitZ();
-      c2.yaw = std::atan2(dir.y(), dir.x()) + 0.5;
+      c2.target = peak_snap.instrument.position - dir * (half + shaft_r);  // the tip
+      c2.distance = 0.45 * cam.distance;
+      def.arrow_scale = 0.25 * c2.distance / std::max(peak, 1e-3);  // a quarter of the view
+      c2.yaw = std::atan2(dir.y(), dir.x()) + 0.9;
       c2.pitch = std::clamp(std::asin(std::clamp(dir.z(), -1.0, 1.0)), -0.3, 1.0) + 0.25;
       examples::draw_scene(def, c2, gl.width(), gl.height());
       examples::write_png(args.out + "/deformed.png",

@@ -56,6 +56,12 @@ struct ServoOptions {
   Eigen::Quaterniond device_rotation{Eigen::Quaterniond::Identity()};
   double device_scale{1};
 
+  /// The servo thread busy-waits for each deadline (true: it keeps a core, and the period is
+  /// exact to a few us) or sleeps to 400 us before it and spins the rest (false: sleeps on a
+  /// virtual machine overshoot by up to a millisecond now and then). The decoupled simulation
+  /// thread always sleeps.
+  bool spin{true};
+
   /// Ticks whose timing is kept for stats() (allocated up front); later ticks are not recorded.
   std::size_t max_recorded_ticks{180000};
 };
@@ -156,7 +162,7 @@ class ServoLoop {
   void physics_thread(double seconds) noexcept;
   void watchdog_thread() noexcept;
   void trip() noexcept;
-  static void wait_until(Clock::time_point deadline) noexcept;
+  static void wait_until(Clock::time_point deadline, bool spin) noexcept;
   [[nodiscard]] double now() const noexcept;
 
   Simulation<double>& m_sim;
