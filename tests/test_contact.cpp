@@ -221,8 +221,9 @@ TEST(ContactSolver, NoTunnellingAtHalfAMetrePerSecond) {
         const V3 x = sim.model().positions().row(i).transpose();
         const double pen = 0.002 + r - (x - c).norm();
         deepest = std::max(deepest, pen);
-        if (std::hypot(x.x() - c.x(), x.y() - c.y()) < 0.002)
+        if (std::hypot(x.x() - c.x(), x.y() - c.y()) < 0.002) {
           EXPECT_LT(x.z(), c.z()) << "step " << s;
+        }
       }
       peak_force = std::max(peak_force, solver.wrench(k).force.norm());
     }

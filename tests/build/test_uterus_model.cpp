@@ -32,7 +32,9 @@ TEST(UterusModel, TableOneCountsAndAWorkingModel) {
   EXPECT_NEAR(double(total), 694, 0.15 * 694);
   // Element quality of the tetrahedral parts (the paper: 97.9 % of the body's elements in [1, 3]).
   for (const auto& p : report.parts)
-    if (p.topology == Topology::tetrahedral) EXPECT_GT(p.quality.fraction_q_1_3, 0.95) << p.name;
+    if (p.topology == Topology::tetrahedral) {
+      EXPECT_GT(p.quality.fraction_q_1_3, 0.95) << p.name;
+    }
   // Table 1's radii and topologies.
   EXPECT_EQ(model.part("body").topology, Topology::tetrahedral);
   EXPECT_EQ(model.part("tube_left").topology, Topology::axis);

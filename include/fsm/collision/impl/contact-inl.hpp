@@ -194,10 +194,8 @@ void ContactSolver<Scalar>::compute(const SphereModel<Scalar>& model,
   update_hash(model);
   const auto x = model.positions();
   const auto v = model.velocities();
-  const auto rest = model.rest_positions();
   const auto radius = model.radii();
   const auto mass = model.masses();
-  const auto region = model.node_regions();
   const Scalar zeta = m_options.damping_ratio,
                eps2 = m_options.friction_speed * m_options.friction_speed;
 
