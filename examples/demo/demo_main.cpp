@@ -364,8 +364,8 @@ int main(int argc, char** argv) {
       c2.target = peak_snap.instrument.position - dir * (half + shaft_r);  // the tip
       c2.distance = 0.45 * cam.distance;
       def.arrow_scale = 0.25 * c2.distance / std::max(peak, 1e-3);  // a quarter of the view
-      c2.yaw = std::atan2(dir.y(), dir.x()) + 0.9;
-      c2.pitch = std::clamp(std::asin(std::clamp(dir.z(), -1.0, 1.0)), -0.3, 1.0) + 0.25;
+      c2.yaw = std::atan2(dir.y(), dir.x()) + 0.45;
+      c2.pitch = std::clamp(std::asin(std::clamp(dir.z(), -1.0, 1.0)) + 0.35, -0.9, 1.2);
       examples::draw_scene(def, c2, gl.width(), gl.height());
       examples::write_png(args.out + "/deformed.png",
                           examples::read_pixels(gl.width(), gl.height()), gl.width(), gl.height());
