@@ -226,7 +226,9 @@ TEST(ServoLoop, DecoupledThreadsRunAndStop) {
   loop.run_real_time(0.6);
   const ServoStats st = loop.stats();
   EXPECT_GE(st.ticks, 590u);
-  EXPECT_GE(st.steps, 500u);
+  // The simulation thread keeps its own pace (it falls behind under a sanitizer or a loaded
+  // machine; the tick does not wait for it): it must have run, not kept up.
+  EXPECT_GE(st.steps, 100u);
   double peak = 0;
   for (const auto& f : dev.forces()) peak = std::max(peak, f.force.norm());
   EXPECT_GT(peak, 0.01);

@@ -148,6 +148,7 @@ class ServoLoop {
     double time{0};
     Vector3<double> position{Vector3<double>::Zero()}, velocity{Vector3<double>::Zero()};
     Eigen::Quaterniond orientation{Eigen::Quaterniond::Identity()};
+    Vector3<double> force{Vector3<double>::Zero()};  // commanded at this tick, simulation frame
   };
   struct ProxySample {
     Vector3<double> position{Vector3<double>::Zero()}, velocity{Vector3<double>::Zero()};
@@ -178,7 +179,6 @@ class ServoLoop {
   detail::TripleBuffer<ProxySample> m_proxy_buffer;
   detail::TripleBuffer<ServoSnapshot> m_snapshots;
   ProxySample m_proxy;  // physics side
-  Vector3<double> m_last_force{Vector3<double>::Zero()};
 
   std::atomic<bool> m_running{false}, m_stop{false}, m_tripped{false};
   std::atomic<std::int64_t> m_heartbeat_ns{0};  // when the last step completed (ns since m_t0)

@@ -109,6 +109,7 @@ void ServoLoop::begin() {
   // The proxy starts at the device.
   const DeviceState s = m_device.read(0.0);
   DeviceSample& d = m_device_buffer.back();
+  d.force.setZero();
   d.time = 0;
   d.position =
       m_options.device_offset + m_options.device_scale * (m_options.device_rotation * s.position);
@@ -119,7 +120,6 @@ void ServoLoop::begin() {
   m_proxy.velocity.setZero();
   m_proxy_buffer.back() = m_proxy;
   m_proxy_buffer.publish();
-  m_last_force.setZero();
   m_t0 = Clock::now();
   m_last_tick_start = m_t0;
   m_heartbeat_ns = 0;
@@ -165,7 +165,6 @@ void ServoLoop::device_tick(double t) noexcept {
   d.velocity = o.device_scale * (o.device_rotation * s.linear_velocity);
   d.orientation = o.device_rotation * s.orientation;
   const DeviceSample sample = d;
-  m_device_buffer.publish();
 
   m_proxy_buffer.update();
   const ProxySample& p = m_proxy_buffer.front();
@@ -181,7 +180,9 @@ void ServoLoop::device_tick(double t) noexcept {
   if (n > m_max_force) f *= m_max_force / n;
   if (m_tripped.load(std::memory_order_acquire)) f.setZero();
   const Vector3<double> commanded = m_device.apply_force(o.device_rotation.conjugate() * f);
-  m_last_force = o.device_rotation * commanded;
+  // The sample goes to the simulation side with the force it produced (for the snapshot).
+  d.force = o.device_rotation * commanded;
+  m_device_buffer.publish();
   atomic_max(m_peak, commanded.norm());
   ++m_ticks;
 }
@@ -226,7 +227,7 @@ void ServoLoop::physics_step(double t) noexcept {
   s.positions = m_sim.model().positions();  // same size: no allocation
   s.instrument = ins.pose;
   s.device_position = d.position;
-  s.force = m_last_force;
+  s.force = d.force;
   s.tissue_force = m_contacts.wrench(m_instrument).force;
   m_snapshots.publish();
 
