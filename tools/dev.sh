@@ -49,7 +49,10 @@ build() {
   # Debian's Python (where python3-numpy lives), whatever python3 comes first on PATH.
   cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE="$BUILD_TYPE" \
     -DPython_EXECUTABLE=/usr/bin/python3 "${launcher[@]}" >/dev/null
-  cmake --build "$BUILD_DIR" -j "$JOBS"
+  # build [TARGET...]: only those targets (the demo needs just itself), else everything.
+  local targets=()
+  [ $# -gt 0 ] && targets=(--target "$@")
+  cmake --build "$BUILD_DIR" -j "$JOBS" "${targets[@]}"
 }
 
 cmd=${1:-}
@@ -57,7 +60,7 @@ cmd=${1:-}
 case "$cmd" in
   demo)
     install_deps
-    build
+    build fsm-demo
     exec "$BUILD_DIR/examples/fsm-demo" "$@"
     ;;
   test)
