@@ -32,6 +32,7 @@ std::pair<V3, V3> approach(const SphereModel<double>& m, const Part& p) {
   Index best = p.first_node;
   double far = -1;
   for (Index i = p.first_node; i < p.first_node + p.num_nodes; ++i) {
+    if (m.fixed()[i]) continue;  // an anchored sphere does not yield: press a free one
     const double d = (m.rest_positions().row(i).transpose() - centre).norm();
     if (d > far) {
       far = d;

@@ -4,8 +4,9 @@
     /usr/bin/python3 docs/charts.py        (tools/dev.sh charts measures, then calls this)
 
 Reads  docs/data/bench_force_model.json, docs/data/bench_integrators.json (Google Benchmark JSON)
-       docs/data/integrator_accuracy.csv
-Writes docs/img/force_per_link.png, docs/img/step_cost.png, docs/img/integrator_speed_accuracy.png
+       docs/data/integrator_accuracy.csv, docs/data/frame_accuracy.csv (if present)
+Writes docs/img/force_per_link.png, docs/img/step_cost.png, docs/img/integrator_speed_accuracy.png,
+       docs/img/frame_speed_accuracy.png
 """
 import csv
 import json
@@ -113,9 +114,38 @@ def accuracy_chart():
     fig.savefig(os.path.join(IMG, "integrator_speed_accuracy.png"), dpi=120)
 
 
+def frame_chart():
+    """Whole-frame rate against accuracy over CG tolerances, sleeping off/on (frame_accuracy)."""
+    path = os.path.join(DATA, "frame_accuracy.csv")
+    if not os.path.exists(path):
+        return
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for sleep, colour, label in (("0", "tab:green", "sleeping off"), ("1", "tab:purple", "sleeping on")):
+        pts = [r for r in rows if r["sleep"] == sleep]
+        x = [max(float(r["surface_rms_um"]), 1e-4) for r in pts]
+        y = [float(r["frame_hz"]) for r in pts]
+        ax.plot(x, y, "o-", color=colour, label=label)
+        if sleep == "0":
+            for r, xi, yi in zip(pts, x, y):
+                ax.annotate("tol %s" % r["tolerance"], (xi, yi), textcoords="offset points", xytext=(4, 4),
+                            fontsize=7)
+    ax.axhline(500, color="tab:red", ls="--", lw=1, label="target 500 Hz")
+    ax.axhspan(40, 60, color="tab:gray", alpha=0.3, label="paper 40-60 Hz")
+    ax.set_xscale("log")
+    ax.set_xlabel("surface RMS difference from a CG 1e-9 run after 3 s (um)")
+    ax.set_ylabel("whole-frame rate (Hz)")
+    ax.set_title("Uterus whole frame: 17 implicit steps + contacts + skinning")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(os.path.join(IMG, "frame_speed_accuracy.png"), dpi=120)
+
+
 if __name__ == "__main__":
     os.makedirs(IMG, exist_ok=True)
     force_chart()
     step_chart()
     accuracy_chart()
+    frame_chart()
     print("wrote", ", ".join(sorted(os.listdir(IMG))))

@@ -86,6 +86,7 @@ case "$cmd" in
       "$BUILD_DIR/bench/$b" --benchmark_out="docs/data/$b.json" --benchmark_out_format=json
     done
     "$BUILD_DIR/bench/integrator_accuracy" --out docs/data/integrator_accuracy.csv
+    [ -x "$BUILD_DIR/bench/frame_accuracy" ] && "$BUILD_DIR/bench/frame_accuracy" --out docs/data/frame_accuracy.csv
     /usr/bin/python3 docs/charts.py
     ;;
   install-deps)

@@ -197,6 +197,7 @@ Target target(const TissueModel<double>& model, const Part& p, double depth) {
   Index best = p.first_node;
   double far = -1;
   for (Index i = p.first_node; i < p.first_node + p.num_nodes; ++i) {
+    if (m.fixed()[i]) continue;  // an anchored sphere does not yield: press a free one
     const double d = (m.rest_positions().row(i).transpose() - centre).norm();
     if (d > far) {
       far = d;
