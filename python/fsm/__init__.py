@@ -56,6 +56,7 @@ from ._fsm import (  # noqa: F401
     Topology,
     TriangleBvh,
     VoigtLink,
+    VolumeTerm,
     Waypoint,
     Wrench,
     add_tetrahedral_part,

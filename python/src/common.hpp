@@ -78,5 +78,6 @@ void define_simulation(py::module_& m);
 void define_tissue_model(py::module_& m);
 void define_collision(py::module_& m);
 void define_haptics(py::module_& m);
+void define_volume_term(py::module_& m);
 
 }  // namespace fsm::python

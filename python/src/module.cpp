@@ -18,4 +18,5 @@ argument, and the reason, e.g. "instrument 'probe': friction must be non-negativ
   fsm::python::define_tissue_model(m);
   fsm::python::define_collision(m);
   fsm::python::define_haptics(m);
+  fsm::python::define_volume_term(m);
 }
