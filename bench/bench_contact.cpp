@@ -9,6 +9,7 @@
 #include "common.hpp"
 #include "fsm/build/builder.hpp"
 #include "fsm/collision/contact.hpp"
+#include "probe_site.hpp"
 
 namespace fsm::bench {
 namespace {
@@ -25,19 +26,9 @@ const TissueModel<double>& uterus() {
 // An instrument (a 5 mm shaft with a rounded tip) pressing 1 mm into the given part, from outside:
 // at the part's sphere farthest from the model's centre, along that direction.
 Instrument<double> probe(const SphereModel<double>& m, const Part& p) {
-  const V3 centre = m.rest_positions().colwise().mean().transpose();
-  Index best = p.first_node;
-  double far = -1;
-  for (Index i = p.first_node; i < p.first_node + p.num_nodes; ++i) {
-    if (m.fixed()[i]) continue;  // an anchored sphere does not yield: press a free one
-    const double d = (m.rest_positions().row(i).transpose() - centre).norm();
-    if (d > far) {
-      far = d;
-      best = i;
-    }
-  }
-  const V3 x = m.rest_positions().row(best).transpose();
-  const V3 out = (x - centre).normalized();
+  const examples::ProbeSite site = examples::outermost_free_sphere(m, p);
+  const Index best = site.sphere;
+  const V3 x = site.centre, out = site.outward;
   Instrument<double> ins;
   ins.name = "probe";
   ins.shape = CapsuleShape<double>{0.0025, 0.02};

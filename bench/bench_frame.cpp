@@ -11,6 +11,7 @@
 #include "fsm/collision/contact.hpp"
 #include "fsm/collision/triangle_bvh.hpp"
 #include "fsm/fsm.hpp"
+#include "probe_site.hpp"
 
 namespace fsm::bench {
 namespace {
@@ -41,18 +42,9 @@ void BM_WholeFrame(benchmark::State& state) {
   // Probe the body's outermost sphere.
   const SphereModel<double>& m = model.spheres;
   const Part& body = model.part("body");
-  const V3 centre = m.rest_positions().colwise().mean().transpose();
-  Index best = body.first_node;
-  double far = -1;
-  for (Index i = body.first_node; i < body.first_node + body.num_nodes; ++i) {
-    if (m.fixed()[i]) continue;  // an anchored sphere does not yield: press a free one
-    const double d = (m.rest_positions().row(i).transpose() - centre).norm();
-    if (d > far) {
-      far = d;
-      best = i;
-    }
-  }
-  const V3 x = m.rest_positions().row(best).transpose(), out = (x - centre).normalized();
+  const examples::ProbeSite site = examples::outermost_free_sphere(m, body);
+  const Index best = site.sphere;
+  const V3 x = site.centre, out = site.outward;
   collision::Instrument<double> tool;
   tool.shape = collision::CapsuleShape<double>{0.0025, 0.02};
   tool.pose.orientation = Eigen::Quaterniond::FromTwoVectors(V3::UnitZ(), out);

@@ -18,6 +18,7 @@
 #include "fsm/haptics/scripted_device.hpp"
 #include "fsm/haptics/servo_loop.hpp"
 #include "fsm/implicit_euler_integrator.hpp"
+#include "probe_site.hpp"
 
 using namespace fsm;
 using namespace fsm::haptics;
@@ -28,19 +29,9 @@ namespace {
 // A waypoint 1 mm into the part's outermost sphere, along the outward direction, and one 15 mm
 // outside it.
 std::pair<V3, V3> approach(const SphereModel<double>& m, const Part& p) {
-  const V3 centre = m.rest_positions().colwise().mean().transpose();
-  Index best = p.first_node;
-  double far = -1;
-  for (Index i = p.first_node; i < p.first_node + p.num_nodes; ++i) {
-    if (m.fixed()[i]) continue;  // an anchored sphere does not yield: press a free one
-    const double d = (m.rest_positions().row(i).transpose() - centre).norm();
-    if (d > far) {
-      far = d;
-      best = i;
-    }
-  }
-  const V3 x = m.rest_positions().row(best).transpose();
-  const V3 out = (x - centre).normalized();
+  const examples::ProbeSite site = examples::outermost_free_sphere(m, p);
+  const Index best = site.sphere;
+  const V3 x = site.centre, out = site.outward;
   const double r = m.radii()[best] + 0.003;  // sphere radius + the probe's
   return {x + out * (r - 0.002), x + out * (r + 0.015)};
 }

@@ -197,7 +197,8 @@ TEST(ForceModel, DragDecaysRigidMotionExponentially) {
     Simulation<double> sim(model, o);
     const double dt = 1e-4;
     for (int s = 0; s < 2000; ++s) ASSERT_TRUE(sim.step(dt).advanced());  // 0.2 s
-    EXPECT_TRUE(near(sim.model().velocities().col(0).mean(), 0.1 * std::exp(-5.0 * 0.2), 2e-3)) << name;
+    EXPECT_TRUE(near(sim.model().velocities().col(0).mean(), 0.1 * std::exp(-5.0 * 0.2), 2e-3))
+        << name;
   }
   ForceModel<double>::Options bad;
   bad.drag = -1;

@@ -8,8 +8,6 @@
 //
 // Field names of --json: docs/demo.md.
 
-#include <sys/stat.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -20,6 +18,8 @@
 #include <thread>
 
 #include "../common/gl_scene.hpp"
+#include "../common/model_cache.hpp"
+#include "../common/probe_site.hpp"
 #include "fsm/build/builder.hpp"
 #include "fsm/collision/triangle_bvh.hpp"
 #include "fsm/fsm.hpp"
@@ -82,74 +82,6 @@ Args parse(int argc, char** argv) {
   return a;
 }
 
-double mtime(const std::string& path) {
-  struct stat st {};
-  return stat(path.c_str(), &st) == 0 ? double(st.st_mtime) : -1;
-}
-
-std::string cache_dir() {
-  if (const char* d = std::getenv("FSM_CACHE_DIR")) return d;
-  if (const char* d = std::getenv("XDG_CACHE_HOME")) return std::string(d) + "/fsm";
-  if (const char* d = std::getenv("HOME")) return std::string(d) + "/.cache/fsm";
-  return ".fsm-cache";
-}
-
-void make_dirs(const std::string& path) {
-  std::string p;
-  for (std::size_t i = 0; i <= path.size(); ++i) {
-    if (i == path.size() || path[i] == '/') {
-      if (!p.empty()) mkdir(p.c_str(), 0755);
-    }
-    if (i < path.size()) p += path[i];
-  }
-}
-
-// The bundled uterus, built on first run and cached (rebuilt when the scene or a mesh is newer).
-TissueModel<double> load_or_build(const Args& a, std::string& source, bool& built,
-                                  double& build_s) {
-  const auto t0 = std::chrono::steady_clock::now();
-  built = false;
-  if (!a.model.empty() && a.model.size() > 5 && a.model.substr(a.model.size() - 5) == ".json") {
-    source = a.model;
-    built = true;
-    TissueModel<double> m = build::build_model(a.model);
-    build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    return m;
-  }
-  if (!a.model.empty()) {
-    source = a.model;
-    return load_model(a.model);
-  }
-  const char* data = std::getenv("FSM_DATA_DIR");
-  const std::string dir =
-      data != nullptr ? std::string(data) : std::string(FSM_SOURCE_DIR) + "/data";
-  const std::string scene = dir + "/uterus/uterus.json";
-  const std::string cached = cache_dir() + "/uterus.fsm";
-  double newest = mtime(scene);
-  for (const char* m : {"body", "fibroid", "ovary_left", "ovary_right", "ligament_left",
-                        "ligament_right", "tube_left", "tube_right"})
-    newest = std::max(newest, mtime(dir + "/uterus/" + m + ".off"));
-  if (mtime(cached) >= newest && newest > 0) {
-    try {
-      source = cached;
-      return load_model(cached);
-    } catch (const Error&) {
-      // stale or corrupt cache (e.g. an older format): rebuild below
-    }
-  }
-  source = scene;
-  built = true;
-  TissueModel<double> m = build::build_model(scene);
-  build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  try {
-    make_dirs(cache_dir());
-    save_model(cached, m);
-  } catch (const Error& e) {
-    std::fprintf(stderr, "fsm-demo: could not cache the model (%s); continuing\n", e.what());
-  }
-  return m;
-}
-
 // Where the instrument presses a part: its sphere farthest from the model's centre, along the
 // outward direction. The capsule's -z end is the tip; the pose is its centre.
 struct Target {
@@ -162,19 +94,9 @@ Target target(const TissueModel<double>& model, const std::string& part, double 
               double radius, double depth) {
   const SphereModel<double>& m = model.spheres;
   const Part& p = model.part(part);
-  const V3 centre = m.rest_positions().colwise().mean().transpose();
-  Index best = p.first_node;
-  double far = -1;
-  for (Index i = p.first_node; i < p.first_node + p.num_nodes; ++i) {
-    if (m.fixed()[i]) continue;  // an anchored sphere does not yield: press a free one
-    const double d = (m.rest_positions().row(i).transpose() - centre).norm();
-    if (d > far) {
-      far = d;
-      best = i;
-    }
-  }
-  const V3 x = m.rest_positions().row(best).transpose();
-  const V3 out = (x - centre).normalized();
+  const examples::ProbeSite site = examples::outermost_free_sphere(m, p);
+  const Index best = site.sphere;
+  const V3 x = site.centre, out = site.outward;
   Target t;
   t.part = part;
   t.orientation = Eigen::Quaterniond::FromTwoVectors(V3::UnitZ(), out);
@@ -212,11 +134,14 @@ void write_obj(const std::string& path, const TissueModel<double>& model,
 int main(int argc, char** argv) {
   try {
     const Args args = parse(argc, argv);
-    make_dirs(args.out);
-    std::string source;
-    bool built = false;
-    double build_s = 0;
-    const TissueModel<double> model = load_or_build(args, source, built, build_s);
+    examples::make_dirs(args.out);
+    const examples::OpenedModel opened = examples::open_model(
+        args.model, std::string(FSM_SOURCE_DIR) + "/data",
+        [](const std::string& scene) { return build::build_model(scene); }, "fsm-demo");
+    const TissueModel<double>& model = opened.model;
+    const std::string& source = opened.source;
+    const bool built = opened.built;
+    const double build_s = opened.build_seconds;
 
     // ---- Table-1-like report.
     const std::pair<const char*, int> paper[] = {

@@ -15,7 +15,6 @@
 // Exit status: 0, 1 on an error, 77 when there is no display or no OpenGL context (a test skips).
 
 #include <GLFW/glfw3.h>
-#include <sys/stat.h>
 
 #include <algorithm>
 #include <chrono>
@@ -28,6 +27,8 @@
 #include <thread>
 
 #include "../common/gl_scene.hpp"
+#include "../common/model_cache.hpp"
+#include "../common/probe_site.hpp"
 #include "fsm/fsm.hpp"
 #include "fsm/haptics/touch_device.hpp"
 #include "mouse_device.hpp"
@@ -118,29 +119,7 @@ Args parse(int argc, char** argv) {
   return a;
 }
 
-// ---- The model: as fsm-demo loads it (the bundled uterus, built on first run and cached).
-
-double mtime(const std::string& path) {
-  struct stat st {};
-  return stat(path.c_str(), &st) == 0 ? double(st.st_mtime) : -1;
-}
-
-std::string cache_dir() {
-  if (const char* d = std::getenv("FSM_CACHE_DIR")) return d;
-  if (const char* d = std::getenv("XDG_CACHE_HOME")) return std::string(d) + "/fsm";
-  if (const char* d = std::getenv("HOME")) return std::string(d) + "/.cache/fsm";
-  return ".fsm-cache";
-}
-
-void make_dirs(const std::string& path) {
-  std::string p;
-  for (std::size_t i = 0; i <= path.size(); ++i) {
-    if (i == path.size() || path[i] == '/') {
-      if (!p.empty()) mkdir(p.c_str(), 0755);
-    }
-    if (i < path.size()) p += path[i];
-  }
-}
+// ---- The model: as fsm-demo opens it (examples/common/model_cache.hpp); the builder is optional.
 
 TissueModel<double> build_scene(const std::string& scene) {
 #ifdef FSM_VIEWER_HAS_BUILDER
@@ -151,35 +130,6 @@ TissueModel<double> build_scene(const std::string& scene) {
   throw Error(scene, "fsm-viewer",
               "built without the model builder (fsm::build): pass --model FILE.fsm");
 #endif
-}
-
-TissueModel<double> load_or_build(const std::string& model) {
-  if (model.size() > 5 && model.substr(model.size() - 5) == ".json") return build_scene(model);
-  if (!model.empty()) return load_model(model);
-  const char* data = std::getenv("FSM_DATA_DIR");
-  const std::string dir =
-      data != nullptr ? std::string(data) : std::string(FSM_SOURCE_DIR) + "/data";
-  const std::string scene = dir + "/uterus/uterus.json";
-  const std::string cached = cache_dir() + "/uterus.fsm";
-  double newest = mtime(scene);
-  for (const char* m : {"body", "fibroid", "ovary_left", "ovary_right", "ligament_left",
-                        "ligament_right", "tube_left", "tube_right"})
-    newest = std::max(newest, mtime(dir + "/uterus/" + m + ".off"));
-  if (mtime(cached) >= newest && newest > 0) {
-    try {
-      return load_model(cached);
-    } catch (const Error&) {
-      // stale or corrupt cache (e.g. an older format): rebuild below
-    }
-  }
-  TissueModel<double> m = build_scene(scene);
-  try {
-    make_dirs(cache_dir());
-    save_model(cached, m);
-  } catch (const Error& e) {
-    std::fprintf(stderr, "fsm-viewer: could not cache the model (%s); continuing\n", e.what());
-  }
-  return m;
 }
 
 // ---- The scripted probe: presses each part in turn, from outside, for ten minutes.
@@ -193,19 +143,9 @@ struct Target {
 // outward direction. The capsule's -z end is the tip; the pose is its centre.
 Target target(const TissueModel<double>& model, const Part& p, double depth) {
   const SphereModel<double>& m = model.spheres;
-  const V3 centre = m.rest_positions().colwise().mean().transpose();
-  Index best = p.first_node;
-  double far = -1;
-  for (Index i = p.first_node; i < p.first_node + p.num_nodes; ++i) {
-    if (m.fixed()[i]) continue;  // an anchored sphere does not yield: press a free one
-    const double d = (m.rest_positions().row(i).transpose() - centre).norm();
-    if (d > far) {
-      far = d;
-      best = i;
-    }
-  }
-  const V3 x = m.rest_positions().row(best).transpose();
-  const V3 out = (x - centre).normalized();
+  const examples::ProbeSite site = examples::outermost_free_sphere(m, p);
+  const Index best = site.sphere;
+  const V3 x = site.centre, out = site.outward;
   Target t;
   t.orientation = Eigen::Quaterniond::FromTwoVectors(V3::UnitZ(), out);
   t.pressed = x + out * (m.radii()[best] - depth + kHalfLength + kShaftRadius);
@@ -398,7 +338,10 @@ int run(const Args& args) {
   } terminate;
 
   // Load before opening the window (a first run builds the model).
-  const TissueModel<double> model = load_or_build(args.model);
+  const TissueModel<double> model =
+      examples::open_model(args.model, std::string(FSM_SOURCE_DIR) + "/data", build_scene,
+                           "fsm-viewer")
+          .model;
   if (model.skin.num_vertices() == 0 || model.parts.empty())
     throw Error(args.model, "fsm-viewer", "the model has no render surface to show");
 

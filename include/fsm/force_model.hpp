@@ -83,7 +83,8 @@ class ForceModel {
   /// @{
   /// @brief Marks nodes asleep (1) or awake (0), `|V|` entries; recomputes the active link ranges
   /// without allocating (capacity is reserved by refresh()). Returns false on a size mismatch.
-  bool set_asleep(const std::vector<std::uint8_t>& asleep, const SphereModel<Scalar>& model) noexcept;
+  bool set_asleep(const std::vector<std::uint8_t>& asleep,
+                  const SphereModel<Scalar>& model) noexcept;
   [[nodiscard]] const std::vector<std::uint8_t>& asleep() const noexcept { return m_asleep; }
   /// @brief 1 for a node that cannot move now (fixed or asleep).
   [[nodiscard]] const std::vector<std::uint8_t>& immobile() const noexcept { return m_immobile; }

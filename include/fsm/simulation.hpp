@@ -154,7 +154,9 @@ class Simulation {
   /// @brief Changes the sleep policy (turning it off wakes every region).
   void set_sleep_policy(const SleepPolicy<Scalar>& policy);
   /// @brief True while region r sleeps.
-  [[nodiscard]] bool asleep(Index region) const { return m_region_asleep.at(std::size_t(region)) != 0; }
+  [[nodiscard]] bool asleep(Index region) const {
+    return m_region_asleep.at(std::size_t(region)) != 0;
+  }
   /// @brief How many regions sleep now.
   [[nodiscard]] Index num_asleep() const noexcept;
 

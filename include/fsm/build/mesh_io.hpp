@@ -13,18 +13,18 @@ namespace fsm::build {
 
 /// @brief What inspect_mesh() found in one surface mesh.
 struct MeshReport {
-  std::string file;                 ///< Where it came from ("" when built in memory).
+  std::string file;  ///< Where it came from ("" when built in memory).
   Index vertices{0}, faces{0};
-  Index components{0};              ///< Connected components (by shared edges).
-  Index boundary_edges{0};          ///< Edges on one face only; 0 for a closed mesh.
-  Index non_manifold_edges{0};      ///< Edges on three or more faces.
-  Index non_manifold_vertices{0};   ///< Vertices whose faces do not form one fan.
-  Index degenerate_faces{0};        ///< Zero-area faces or faces repeating a vertex.
-  Index self_intersections{0};      ///< Intersecting face pairs found (counting stops at 1000).
-  bool outward_oriented{false};     ///< Closed, and its normals point out (positive volume).
-  double area{0};                   ///< m^2
-  double volume{0};                 ///< m^3, signed; meaningful for a closed mesh
-  std::vector<std::string> repairs; ///< What repair steps changed (filled by the builder).
+  Index components{0};               ///< Connected components (by shared edges).
+  Index boundary_edges{0};           ///< Edges on one face only; 0 for a closed mesh.
+  Index non_manifold_edges{0};       ///< Edges on three or more faces.
+  Index non_manifold_vertices{0};    ///< Vertices whose faces do not form one fan.
+  Index degenerate_faces{0};         ///< Zero-area faces or faces repeating a vertex.
+  Index self_intersections{0};       ///< Intersecting face pairs found (counting stops at 1000).
+  bool outward_oriented{false};      ///< Closed, and its normals point out (positive volume).
+  double area{0};                    ///< m^2
+  double volume{0};                  ///< m^3, signed; meaningful for a closed mesh
+  std::vector<std::string> repairs;  ///< What repair steps changed (filled by the builder).
 
   [[nodiscard]] bool closed() const noexcept { return boundary_edges == 0; }
   [[nodiscard]] bool manifold() const noexcept {
@@ -40,8 +40,8 @@ struct MeshReport {
   [[nodiscard]] std::vector<std::string> defects() const;
 };
 
-/// @brief Reads a triangle (or polygon, then triangulated) mesh from OBJ, OFF, STL or PLY, chosen by
-/// the file extension, and scales its coordinates by `scale` (to metres). Duplicate vertices are
+/// @brief Reads a triangle (or polygon, then triangulated) mesh from OBJ, OFF, STL or PLY, chosen
+/// by the file extension, and scales its coordinates by `scale` (to metres). Duplicate vertices are
 /// merged. fsm::Error naming the file for a missing or unreadable file, an unknown extension, an
 /// empty mesh or non-finite coordinates.
 ///

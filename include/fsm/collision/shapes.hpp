@@ -68,15 +68,15 @@ struct ShapeContact {
   Vector3<Scalar> point{Vector3<Scalar>::Zero()};
 };
 
-/// @brief Throws fsm::Error naming `what` for a negative or non-finite size, or a hull with fewer than
-/// four points not on one plane. A zero radius or half length is allowed (a point, a segment).
+/// @brief Throws fsm::Error naming `what` for a negative or non-finite size, or a hull with fewer
+/// than four points not on one plane. A zero radius or half length is allowed (a point, a segment).
 template <typename Scalar>
 void validate(const Shape<Scalar>& shape, const std::string& what);
 
 /// @brief The shape's world-space bounding box (min, max) at a pose.
 template <typename Scalar>
-[[nodiscard]] std::pair<Vector3<Scalar>, Vector3<Scalar>> bounding_box(const Shape<Scalar>& shape,
-                                                                       const Pose<Scalar>& pose) noexcept;
+[[nodiscard]] std::pair<Vector3<Scalar>, Vector3<Scalar>> bounding_box(
+    const Shape<Scalar>& shape, const Pose<Scalar>& pose) noexcept;
 
 /// @brief Contact between a shape at a pose and a sphere (centre `c`, radius `r`), or nothing when
 /// they are apart. Closed forms for sphere, capsule and cylinder; libccd (GJK + EPA) for convex
@@ -84,7 +84,8 @@ template <typename Scalar>
 template <typename Scalar>
 [[nodiscard]] std::optional<ShapeContact<Scalar>> contact(const Shape<Scalar>& shape,
                                                           const Pose<Scalar>& pose,
-                                                          const Vector3<Scalar>& c, Scalar r) noexcept;
+                                                          const Vector3<Scalar>& c,
+                                                          Scalar r) noexcept;
 
 extern template void validate<double>(const Shape<double>&, const std::string&);
 extern template void validate<float>(const Shape<float>&, const std::string&);

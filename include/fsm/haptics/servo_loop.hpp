@@ -158,8 +158,10 @@ class ServoLoop {
   void end() noexcept;
   void device_tick(double t) noexcept;
   void physics_step(double t) noexcept;
-  void lockstep_thread(double seconds) noexcept;
-  void haptic_thread(double seconds) noexcept;
+  /// The paced 1 kHz loop: device tick, then (lockstep, `with_step`) the simulation step.
+  void servo_thread(double seconds, bool with_step) noexcept;
+  /// No simulation step has completed for watchdog_timeout.
+  [[nodiscard]] bool heartbeat_stale(Clock::time_point now) const noexcept;
   void physics_thread(double seconds) noexcept;
   void watchdog_thread() noexcept;
   void trip() noexcept;

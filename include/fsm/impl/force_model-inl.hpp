@@ -150,9 +150,11 @@ void ForceModel<Scalar>::update_mobility(const SphereModel<Scalar>& model) noexc
   const auto links = model.links();
   const Index L = model.num_links();
   for (Index l = 0; l < L;) {
-    while (l < L && m_immobile[std::size_t(links(l, 0))] && m_immobile[std::size_t(links(l, 1))]) ++l;
+    while (l < L && m_immobile[std::size_t(links(l, 0))] && m_immobile[std::size_t(links(l, 1))])
+      ++l;
     const Index begin = l;
-    while (l < L && !(m_immobile[std::size_t(links(l, 0))] && m_immobile[std::size_t(links(l, 1))])) ++l;
+    while (l < L && !(m_immobile[std::size_t(links(l, 0))] && m_immobile[std::size_t(links(l, 1))]))
+      ++l;
     if (l > begin) m_ranges.emplace_back(begin, l);
   }
 }
@@ -317,7 +319,9 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
                         m_scratch, init, kernel);
   // Jacobi diagonal: m_i + sum over links of diag(B_l), on both ends.
   // The drag's Jacobian -gamma m I joins the mass: M (1 + h gamma).
-  auto init_diag = [&](Index i, Scalar* out) { out[0] = out[1] = out[2] = mass[i] * (1 + h * drag); };
+  auto init_diag = [&](Index i, Scalar* out) {
+    out[0] = out[1] = out[2] = mass[i] * (1 + h * drag);
+  };
   auto kernel_diag = [&](Index begin, Index end, Scalar* out) {
     for (Index l = begin; l < end; ++l) {
       const Scalar* B = blocks + std::ptrdiff_t(implicit_block_size) * l;

@@ -109,11 +109,14 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_assembled(SphereModel<Sc
     const auto mass = model.masses();
 
     Sparse A = -dt * D - (dt * dt) * K;
-    A.prune([&](Index r, Index c, const Scalar&) { return !fixed[std::size_t(r / 3)] && !fixed[std::size_t(c / 3)]; });
+    A.prune([&](Index r, Index c, const Scalar&) {
+      return !fixed[std::size_t(r / 3)] && !fixed[std::size_t(c / 3)];
+    });
     std::vector<Eigen::Triplet<Scalar>> diag;
     diag.reserve(3 * std::size_t(n));
     for (Index i = 0; i < n; ++i)
-      for (int c = 0; c < 3; ++c) diag.emplace_back(3 * i + c, 3 * i + c, fixed[std::size_t(i)] ? 1 : mass[i]);
+      for (int c = 0; c < 3; ++c)
+        diag.emplace_back(3 * i + c, 3 * i + c, fixed[std::size_t(i)] ? 1 : mass[i]);
     Sparse Mm(3 * n, 3 * n);
     Mm.setFromTriplets(diag.begin(), diag.end());
     A += Mm;

@@ -69,7 +69,8 @@ void Simulation<Scalar>::refresh() {
   const auto region = m_model.node_regions();
   m_region_start.assign(std::size_t(nr) + 1, 0);
   for (Index i = 0; i < nn; ++i) ++m_region_start[std::size_t(region[i]) + 1];
-  for (Index r = 0; r < nr; ++r) m_region_start[std::size_t(r) + 1] += m_region_start[std::size_t(r)];
+  for (Index r = 0; r < nr; ++r)
+    m_region_start[std::size_t(r) + 1] += m_region_start[std::size_t(r)];
   m_region_nodes.assign(std::size_t(nn), 0);
   {
     std::vector<Index> fill(m_region_start.begin(), m_region_start.end() - 1);
@@ -146,11 +147,13 @@ bool Simulation<Scalar>::wake_regions() noexcept {
     if (!m_region_asleep[std::size_t(r)]) continue;
     bool wake = false;
     const Scalar tol2 = m_options.sleep.wake_force * m_options.sleep.wake_force;
-    for (Index k = m_region_start[std::size_t(r)]; k < m_region_start[std::size_t(r) + 1] && !wake; ++k) {
+    for (Index k = m_region_start[std::size_t(r)]; k < m_region_start[std::size_t(r) + 1] && !wake;
+         ++k) {
       const Index i = m_region_nodes[std::size_t(k)];
       wake = (ext.row(i) - m_sleep_force.row(i)).squaredNorm() > tol2;
     }
-    for (Index k = m_border_start[std::size_t(r)]; k < m_border_start[std::size_t(r) + 1] && !wake; ++k)
+    for (Index k = m_border_start[std::size_t(r)]; k < m_border_start[std::size_t(r) + 1] && !wake;
+         ++k)
       wake = v.row(m_border_nodes[std::size_t(k)]).squaredNorm() > wake2;
     if (wake) {
       set_region_asleep(r, false);
@@ -169,7 +172,8 @@ void Simulation<Scalar>::sleep_regions(Scalar dt) noexcept {
   for (Index r = 0; r < m_model.num_regions(); ++r) {
     if (m_region_asleep[std::size_t(r)]) continue;
     bool quiet = true;
-    for (Index k = m_region_start[std::size_t(r)]; k < m_region_start[std::size_t(r) + 1] && quiet; ++k) {
+    for (Index k = m_region_start[std::size_t(r)]; k < m_region_start[std::size_t(r) + 1] && quiet;
+         ++k) {
       const Index i = m_region_nodes[std::size_t(k)];
       quiet = v.row(i).squaredNorm() <= sleep2;
     }

@@ -40,9 +40,9 @@ std::string str(Scalar x) {
 template <typename Scalar>
 void check_size(Scalar value, const char* shape, const char* field, const std::string& what) {
   if (!finite(value) || value < Scalar(0))
-    throw Error(std::string(), what,
-                std::string(shape) + " " + field + " is " + str(value) +
-                    " m; it must be finite and >= 0");
+    throw Error(
+        std::string(), what,
+        std::string(shape) + " " + field + " is " + str(value) + " m; it must be finite and >= 0");
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -68,8 +68,8 @@ template <typename Scalar>
 LocalContact<Scalar> sphere_local(Scalar radius, const Vector3<Scalar>& p, Scalar scale) noexcept {
   const Scalar d = p.norm();
   // The centre is equidistant from the whole surface; +z is as good as any and deterministic.
-  const Vector3<Scalar> n = d > noise_length(scale) ? Vector3<Scalar>(p / d)
-                                                    : Vector3<Scalar>::UnitZ();
+  const Vector3<Scalar> n =
+      d > noise_length(scale) ? Vector3<Scalar>(p / d) : Vector3<Scalar>::UnitZ();
   return {d - radius, n, radius * n};
 }
 
@@ -97,8 +97,8 @@ LocalContact<Scalar> cylinder_local(Scalar radius, Scalar half_length, const Vec
                                     Scalar scale) noexcept {
   const Scalar rho = std::hypot(p.x(), p.y());
   const bool on_axis = rho <= noise_length(scale);
-  const Vector3<Scalar> radial = on_axis ? Vector3<Scalar>::UnitX()
-                                         : Vector3<Scalar>(p.x() / rho, p.y() / rho, Scalar(0));
+  const Vector3<Scalar> radial =
+      on_axis ? Vector3<Scalar>::UnitX() : Vector3<Scalar>(p.x() / rho, p.y() / rho, Scalar(0));
   const Scalar cap_sign = p.z() >= Scalar(0) ? Scalar(1) : Scalar(-1);
   const Vector3<Scalar> cap_normal(0, 0, cap_sign);
   const Scalar abs_z = std::abs(p.z());
@@ -140,14 +140,16 @@ template <typename Scalar>
 struct HullFrame {
   const Scalar* points;  // row-major |P| x 3, local frame (m)
   Index count;
-  V3 origin;             // mean of the points (m, local)
-  double scale;          // 1 / size (1/m)
-  V3 interior;           // MPR's interior point of the hull (normalised)
-  V3 centre;             // the sphere centre (normalised)
+  V3 origin;     // mean of the points (m, local)
+  double scale;  // 1 / size (1/m)
+  V3 interior;   // MPR's interior point of the hull (normalised)
+  V3 centre;     // the sphere centre (normalised)
 
   [[nodiscard]] V3 point(Index i) const noexcept {
     const Scalar* q = points + 3 * std::ptrdiff_t(i);
-    return (V3(static_cast<double>(q[0]), static_cast<double>(q[1]), static_cast<double>(q[2])) - origin) * scale;
+    return (V3(static_cast<double>(q[0]), static_cast<double>(q[1]), static_cast<double>(q[2])) -
+            origin) *
+           scale;
   }
   /// Support point of the hull in direction `d` (normalised frame).
   [[nodiscard]] V3 support(const V3& d) const noexcept { return point(support_index(d)); }
@@ -612,8 +614,7 @@ EpaStatus epa_penetration(const HullFrame<Scalar>& h, double& depth, V3& normal)
 
 template <typename Scalar>
 std::optional<LocalContact<double>> hull_local(const ConvexHullShape<Scalar>& hull,
-                                               const Vector3<Scalar>& p_local,
-                                               Scalar r) noexcept {
+                                               const Vector3<Scalar>& p_local, Scalar r) noexcept {
   const Index count = Index(hull.points.rows());
   if (count == 0) return std::nullopt;
   const Scalar* data = hull.points.data();
@@ -758,32 +759,33 @@ std::pair<Vector3<Scalar>, Vector3<Scalar>> bounding_box(const Shape<Scalar>& sh
   auto disc = [&](Scalar radius) {
     return V(radius * (V::Ones() - axis.cwiseAbs2()).cwiseMax(Scalar(0)).cwiseSqrt());
   };
-  return std::visit(
-      Overloaded{[&](const SphereShape<Scalar>& s) {
-                   return std::pair<V, V>(pose.position - V::Constant(s.radius),
-                                          pose.position + V::Constant(s.radius));
-                 },
-                 [&](const CapsuleShape<Scalar>& s) {
-                   const V e = s.half_length * axis.cwiseAbs() + V::Constant(s.radius);
-                   return std::pair<V, V>(pose.position - e, pose.position + e);
-                 },
-                 [&](const CylinderShape<Scalar>& s) {
-                   const V e = s.half_length * axis.cwiseAbs() + disc(s.radius);
-                   return std::pair<V, V>(pose.position - e, pose.position + e);
-                 },
-                 [&](const ConvexHullShape<Scalar>& s) {
-                   if (s.points.rows() == 0) return std::pair<V, V>(pose.position, pose.position);
-                   const Matrix3<Scalar> rot = q.toRotationMatrix();
-                   V lo = V::Constant(std::numeric_limits<Scalar>::infinity());
-                   V hi = -lo;
-                   for (Index i = 0; i < Index(s.points.rows()); ++i) {
-                     const V w = rot * s.points.row(i).transpose();
-                     lo = lo.cwiseMin(w);
-                     hi = hi.cwiseMax(w);
-                   }
-                   return std::pair<V, V>(pose.position + lo, pose.position + hi);
-                 }},
-      shape);
+  return std::visit(Overloaded{[&](const SphereShape<Scalar>& s) {
+                                 return std::pair<V, V>(pose.position - V::Constant(s.radius),
+                                                        pose.position + V::Constant(s.radius));
+                               },
+                               [&](const CapsuleShape<Scalar>& s) {
+                                 const V e =
+                                     s.half_length * axis.cwiseAbs() + V::Constant(s.radius);
+                                 return std::pair<V, V>(pose.position - e, pose.position + e);
+                               },
+                               [&](const CylinderShape<Scalar>& s) {
+                                 const V e = s.half_length * axis.cwiseAbs() + disc(s.radius);
+                                 return std::pair<V, V>(pose.position - e, pose.position + e);
+                               },
+                               [&](const ConvexHullShape<Scalar>& s) {
+                                 if (s.points.rows() == 0)
+                                   return std::pair<V, V>(pose.position, pose.position);
+                                 const Matrix3<Scalar> rot = q.toRotationMatrix();
+                                 V lo = V::Constant(std::numeric_limits<Scalar>::infinity());
+                                 V hi = -lo;
+                                 for (Index i = 0; i < Index(s.points.rows()); ++i) {
+                                   const V w = rot * s.points.row(i).transpose();
+                                   lo = lo.cwiseMin(w);
+                                   hi = hi.cwiseMax(w);
+                                 }
+                                 return std::pair<V, V>(pose.position + lo, pose.position + hi);
+                               }},
+                    shape);
 }
 
 template <typename Scalar>
@@ -840,8 +842,8 @@ template void validate<double>(const Shape<double>&, const std::string&);
 template void validate<float>(const Shape<float>&, const std::string&);
 template std::pair<Vector3<double>, Vector3<double>> bounding_box<double>(
     const Shape<double>&, const Pose<double>&) noexcept;
-template std::pair<Vector3<float>, Vector3<float>> bounding_box<float>(
-    const Shape<float>&, const Pose<float>&) noexcept;
+template std::pair<Vector3<float>, Vector3<float>> bounding_box<float>(const Shape<float>&,
+                                                                       const Pose<float>&) noexcept;
 template std::optional<ShapeContact<double>> contact<double>(const Shape<double>&,
                                                              const Pose<double>&,
                                                              const Vector3<double>&,

@@ -174,7 +174,7 @@ void ServoLoop::device_tick(double t) noexcept {
   // the clamp is the smaller of ours and the device's.
   const double since = t - m_rearm_time.load(std::memory_order_relaxed);
   const double ramp = o.ramp_time > 0 ? std::clamp(since / o.ramp_time, 0.0, 1.0) : 1.0;
-  if (m_tripped.load(std::memory_order_acquire) || !f.allFinite()) f.setZero();
+  if (!f.allFinite()) f.setZero();
   f *= ramp;
   const double n = f.norm();
   if (n > m_max_force) f *= m_max_force / n;
@@ -250,30 +250,16 @@ void ServoLoop::run_fast(double seconds) {
   end();
 }
 
-void ServoLoop::lockstep_thread(double seconds) noexcept {
-  make_servo_thread();
-  const auto period =
-      std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(m_period));
-  for (std::int64_t k = 0; !m_stop.load(std::memory_order_relaxed); ++k) {
-    const double t = double(k) * m_period;
-    if (seconds > 0 && t >= seconds) break;
-    const auto deadline = m_t0 + k * period;
-    wait_until(deadline, m_options.spin);
-    const auto start = Clock::now();
-    if (k > 0 && m_periods.size() < m_periods.capacity())
-      m_periods.push_back(std::chrono::duration<float>(start - m_last_tick_start).count());
-    if (start - deadline >= period) ++m_missed;
-    m_last_tick_start = start;
-    device_tick(t);
-    physics_step(t);
-  }
+bool ServoLoop::heartbeat_stale(Clock::time_point now) const noexcept {
+  // Before the first step completes the heartbeat is the start time.
+  const auto beat = m_t0 + std::chrono::nanoseconds(m_heartbeat_ns.load(std::memory_order_acquire));
+  return now - beat > std::chrono::duration<double>(m_options.watchdog_timeout);
 }
 
-void ServoLoop::haptic_thread(double seconds) noexcept {
+void ServoLoop::servo_thread(double seconds, bool with_step) noexcept {
   make_servo_thread();
   const auto period =
       std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(m_period));
-  const auto timeout = std::chrono::duration<double>(m_options.watchdog_timeout);
   for (std::int64_t k = 0; !m_stop.load(std::memory_order_relaxed); ++k) {
     const double t = double(k) * m_period;
     if (seconds > 0 && t >= seconds) break;
@@ -284,13 +270,12 @@ void ServoLoop::haptic_thread(double seconds) noexcept {
       m_periods.push_back(std::chrono::duration<float>(start - m_last_tick_start).count());
     if (start - deadline >= period) ++m_missed;
     m_last_tick_start = start;
-    // Decoupled: the tick is its own watchdog.
-    const auto beat =
-        m_t0 + std::chrono::nanoseconds(m_heartbeat_ns.load(std::memory_order_acquire));
-    if (k > 0 && start - beat > timeout) trip();
+    // Decoupled, the tick is its own watchdog; in lockstep the watchdog thread is.
+    if (!with_step && k > 0 && heartbeat_stale(start)) trip();
     device_tick(t);
+    if (with_step) physics_step(t);
   }
-  m_stop = true;
+  if (!with_step) m_stop = true;  // the simulation thread follows the tick's end
 }
 
 void ServoLoop::physics_thread(double seconds) noexcept {
@@ -307,13 +292,9 @@ void ServoLoop::physics_thread(double seconds) noexcept {
 }
 
 void ServoLoop::watchdog_thread() noexcept {
-  const auto timeout = std::chrono::duration<double>(m_options.watchdog_timeout);
   while (!m_stop.load(std::memory_order_relaxed)) {
     std::this_thread::sleep_for(std::chrono::microseconds(250));
-    const auto beat =
-        m_t0 + std::chrono::nanoseconds(m_heartbeat_ns.load(std::memory_order_acquire));
-    // Before the first step completes the heartbeat is the start time.
-    if (Clock::now() - beat > timeout) trip();
+    if (heartbeat_stale(Clock::now())) trip();
   }
 }
 
@@ -321,7 +302,7 @@ void ServoLoop::start() {
   begin();
   try {
     if (m_options.threading == ServoOptions::Threading::lockstep) {
-      m_threads.emplace_back([this] { lockstep_thread(0); });
+      m_threads.emplace_back([this] { servo_thread(0, true); });
       m_threads.emplace_back([this] { watchdog_thread(); });
     } else {
       m_threads.emplace_back([this] { physics_thread(0); });
@@ -329,16 +310,12 @@ void ServoLoop::start() {
         auto k = std::make_shared<std::int64_t>(0);
         m_device.run_scheduler([this, k] {
           if (m_stop.load(std::memory_order_relaxed)) return false;
-          const auto beat =
-              m_t0 + std::chrono::nanoseconds(m_heartbeat_ns.load(std::memory_order_acquire));
-          if (*k > 0 &&
-              Clock::now() - beat > std::chrono::duration<double>(m_options.watchdog_timeout))
-            trip();
+          if (*k > 0 && heartbeat_stale(Clock::now())) trip();
           device_tick(double((*k)++) * m_period);
           return true;
         });
       } else {
-        m_threads.emplace_back([this] { haptic_thread(0); });
+        m_threads.emplace_back([this] { servo_thread(0, false); });
       }
     }
   } catch (...) {
@@ -352,12 +329,12 @@ void ServoLoop::run_real_time(double seconds) {
   try {
     if (m_options.threading == ServoOptions::Threading::lockstep) {
       std::thread watchdog([this] { watchdog_thread(); });
-      lockstep_thread(seconds);
+      servo_thread(seconds, true);
       m_stop = true;
       watchdog.join();
     } else {
       std::thread physics([this, seconds] { physics_thread(seconds); });
-      haptic_thread(seconds);
+      servo_thread(seconds, false);
       m_stop = true;
       physics.join();
     }
