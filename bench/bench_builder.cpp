@@ -8,14 +8,16 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include "../src/build/fillings.hpp"
-#include "fsm/build/builder.hpp"
+#include "fsm/builder/builder.hpp"
+#include "fsm/builder/fillings.hpp"
+#include "fsm_support/model_cache.hpp"
 
 namespace fsm::bench {
 namespace {
 
 namespace fs = std::filesystem;
-const std::string kScene = std::string(FSM_SOURCE_DIR) + "/data/uterus/uterus.json";
+const std::string kData = support::source_data_dir();
+const std::string kScene = kData + "/uterus/uterus.json";
 
 void BM_TetraFilling(benchmark::State& state, const std::string& optimiser,
                      const std::string& which) {
@@ -24,9 +26,9 @@ void BM_TetraFilling(benchmark::State& state, const std::string& optimiser,
   TriangleMesh<double> body;
   double r = 0.005;
   if (which == "body") {
-    body = build::read_mesh(std::string(FSM_SOURCE_DIR) + "/data/uterus/body.obj", 0.01);
+    body = build::read_mesh(kData + "/uterus/body.obj", 0.01);
   } else {
-    const std::string d = std::string(FSM_SOURCE_DIR) + "/../shared/data/vhf-pelvis/";
+    const std::string d = std::string(FSM_SHARED_DATA_DIR) + "/vhf-pelvis/";
     if (!fs::exists(d)) {
       state.SkipWithError("no shared data folder");
       return;
@@ -39,8 +41,8 @@ void BM_TetraFilling(benchmark::State& state, const std::string& optimiser,
     r = 0.003;
   }
   const auto metric = build::isotropic_metric(r);
-  build::detail::TetraFilling fill;
-  for (auto _ : state) fill = build::detail::fill_tetrahedral(body, *metric, optimiser, which);
+  build::TetraFilling fill;
+  for (auto _ : state) fill = build::fill_tetrahedral(body, *metric, optimiser, which);
   state.counters["spheres"] = double(fill.mesh.vertices.rows());
   state.counters["tetrahedra"] = double(fill.quality.tetrahedra);
   state.counters["q_1_3_pct"] = 100 * fill.quality.fraction_q_1_3;

@@ -7,9 +7,10 @@
 #include <random>
 
 #include "common.hpp"
-#include "fsm/build/builder.hpp"
+#include "fsm/builder/builder.hpp"
 #include "fsm/collision/contact.hpp"
-#include "probe_site.hpp"
+#include "fsm_support/model_cache.hpp"
+#include "fsm_support/probe.hpp"
 
 namespace fsm::bench {
 namespace {
@@ -18,24 +19,14 @@ using namespace fsm::collision;
 using V3 = Vector3<double>;
 
 const TissueModel<double>& uterus() {
-  static const TissueModel<double> model =
-      build::build_model(std::string(FSM_SOURCE_DIR) + "/data/uterus/uterus.json");
-  return model;
+  return support::bundled_uterus([](const std::string& s) { return build::build_model(s); },
+                                 "bench_contact");
 }
 
 // An instrument (a 5 mm shaft with a rounded tip) pressing 1 mm into the given part, from outside:
 // at the part's sphere farthest from the model's centre, along that direction.
 Instrument<double> probe(const SphereModel<double>& m, const Part& p) {
-  const examples::ProbeSite site = examples::outermost_free_sphere(m, p);
-  const Index best = site.sphere;
-  const V3 x = site.centre, out = site.outward;
-  Instrument<double> ins;
-  ins.name = "probe";
-  ins.shape = CapsuleShape<double>{0.0025, 0.02};
-  // The capsule's -z end is the tip; point it along -out, tip 1 mm into the sphere.
-  ins.pose.orientation = Eigen::Quaterniond::FromTwoVectors(V3::UnitZ(), out);
-  ins.pose.position = x + out * (m.radii()[best] + 0.0025 - 0.001 + 0.02);
-  return ins;
+  return support::CapsuleProbe{support::outermost_free_sphere(m, p)}.instrument(0.001);
 }
 
 void BM_UterusContact(benchmark::State& state, const std::string& part, bool parts) {

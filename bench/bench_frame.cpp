@@ -7,11 +7,12 @@
 
 #include <benchmark/benchmark.h>
 
-#include "fsm/build/builder.hpp"
+#include "fsm/builder/builder.hpp"
 #include "fsm/collision/contact.hpp"
 #include "fsm/collision/triangle_bvh.hpp"
 #include "fsm/fsm.hpp"
-#include "probe_site.hpp"
+#include "fsm_support/model_cache.hpp"
+#include "fsm_support/probe.hpp"
 
 namespace fsm::bench {
 namespace {
@@ -19,9 +20,8 @@ namespace {
 using V3 = Vector3<double>;
 
 const TissueModel<double>& uterus() {
-  static const TissueModel<double> model =
-      build::build_model(std::string(FSM_SOURCE_DIR) + "/data/uterus/uterus.json");
-  return model;
+  return support::bundled_uterus([](const std::string& s) { return build::build_model(s); },
+                                 "bench_frame");
 }
 
 // Args: CG tolerance exponent (3 = 1e-3), sleeping, force threads.
@@ -40,15 +40,8 @@ void BM_WholeFrame(benchmark::State& state) {
   sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
   collision::ContactSolver<double> contacts(sim.model());
   // Probe the body's outermost sphere.
-  const SphereModel<double>& m = model.spheres;
-  const Part& body = model.part("body");
-  const examples::ProbeSite site = examples::outermost_free_sphere(m, body);
-  const Index best = site.sphere;
-  const V3 x = site.centre, out = site.outward;
-  collision::Instrument<double> tool;
-  tool.shape = collision::CapsuleShape<double>{0.0025, 0.02};
-  tool.pose.orientation = Eigen::Quaterniond::FromTwoVectors(V3::UnitZ(), out);
-  const Index k = contacts.add_instrument(tool);
+  const support::CapsuleProbe probe = support::capsule_probe(model, "body");
+  const Index k = contacts.add_instrument(probe.instrument(0));
   auto ws = model.skin.make_workspace();
   Positions<double> surface = model.skin.rest.vertices, normals = surface;
   collision::TriangleBvh<double> bvh(model.skin.rest.vertices, model.skin.rest.faces);
@@ -57,10 +50,9 @@ void BM_WholeFrame(benchmark::State& state) {
   auto frame = [&] {
     for (int s = 0; s < 17; ++s, ++step) {
       const double t = double(step) * 1e-3;
-      const double depth = 0.001 + 0.001 * std::sin(2 * 3.14159265358979 * t);
-      contacts.instrument(k).pose.position = x + out * (m.radii()[best] - depth + 0.0025 + 0.02);
-      contacts.instrument(k).linear_velocity =
-          -out * 0.002 * 3.14159265358979 * std::cos(2 * 3.14159265358979 * t);
+      const double pi = 3.14159265358979;
+      probe.press(contacts, k, 0.001 + 0.001 * std::sin(2 * pi * t),
+                  0.002 * pi * std::cos(2 * pi * t));
       sim.external_forces().setZero();
       contacts.compute(sim.model(), sim.external_forces());
       iterations += sim.step(1e-3).solver_iterations;

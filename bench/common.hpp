@@ -10,20 +10,9 @@
 #include <random>
 
 #include "fsm/fsm.hpp"
+#include "fsm_support/paper.hpp"
 
 namespace fsm::bench {
-
-/// The paper's tissue: bilinear 13.15 / 68.38 kPa, 10.26 Pa s (switch strain ours: 10 %).
-template <typename Scalar>
-Material<Scalar> paper_tissue() {
-  Material<Scalar> m;
-  m.density = Scalar(1050);
-  m.youngs_modulus = Scalar(13150);
-  m.large_strain_modulus = Scalar(68380);
-  m.switch_strain = Scalar(0.10);
-  m.viscosity = Scalar(10.26);
-  return m;
-}
 
 /// A cube lattice of n^3 cells (about 7 n^3 links), 5 mm spacing, bottom layer fixed, nodes
 /// jittered by 10 % so no link is axis-aligned, and a small random velocity field.
@@ -36,7 +25,7 @@ SphereModel<Scalar> lattice_model(int n, bool bilinear = true) {
   for (Index i = 0; i < mesh.vertices.rows(); ++i)
     for (int c = 0; c < 3; ++c) mesh.vertices(i, c) += Scalar(0.1 * double(h) * u(rng));
   SphereModel<Scalar> model;
-  Material<Scalar> tissue = paper_tissue<Scalar>();
+  Material<Scalar> tissue = support::paper::bilinear_tissue<Scalar>();
   if (!bilinear) tissue.large_strain_modulus = 0;
   add_tetrahedral_part(model, mesh, model.add_region("lattice", tissue), h / 2);
   for (Index i = 0; i < model.num_nodes(); ++i) {
@@ -65,7 +54,8 @@ SphereModel<Scalar> uterus_sized_model() {
     return (c.array() / axes.array()).matrix().squaredNorm() <= Scalar(1);
   });
   SphereModel<Scalar> model;
-  add_tetrahedral_part(model, mesh, model.add_region("body", paper_tissue<Scalar>()), h / 2);
+  add_tetrahedral_part(model, mesh,
+                       model.add_region("body", support::paper::bilinear_tissue<Scalar>()), h / 2);
   const Scalar xmin = model.rest_positions().col(0).minCoeff();
   for (Index i = 0; i < model.num_nodes(); ++i)
     if (model.rest_positions()(i, 0) < xmin + Scalar(1.5) * h) model.set_fixed(i);

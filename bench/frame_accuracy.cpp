@@ -11,9 +11,10 @@
 #include <fstream>
 #include <string>
 
-#include "fsm/build/builder.hpp"
+#include "fsm/builder/builder.hpp"
 #include "fsm/fsm.hpp"
-#include "probe_site.hpp"
+#include "fsm_support/model_cache.hpp"
+#include "fsm_support/probe.hpp"
 
 using namespace fsm;
 using V3 = Vector3<double>;
@@ -37,15 +38,8 @@ Run run(const TissueModel<double>& model, double tolerance, bool sleep) {
   io.max_iterations = 1000;
   sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
   collision::ContactSolver<double> contacts(sim.model());
-  const SphereModel<double>& m = model.spheres;
-  const Part& body = model.part("body");
-  const examples::ProbeSite site = examples::outermost_free_sphere(m, body);
-  const Index best = site.sphere;
-  const V3 x = site.centre, out = site.outward;
-  collision::Instrument<double> tool;
-  tool.shape = collision::CapsuleShape<double>{0.0025, 0.02};
-  tool.pose.orientation = Eigen::Quaterniond::FromTwoVectors(V3::UnitZ(), out);
-  const Index k = contacts.add_instrument(tool);
+  const support::CapsuleProbe probe = support::capsule_probe(model, "body");
+  const Index k = contacts.add_instrument(probe.instrument(0));
   auto ws = model.skin.make_workspace();
   Run r;
   r.surface = model.skin.rest.vertices;
@@ -57,9 +51,8 @@ Run run(const TissueModel<double>& model, double tolerance, bool sleep) {
     const auto t0 = std::chrono::steady_clock::now();
     for (int s = 0; s < 17; ++s) {
       const double t = double(frame * 17 + s) * 1e-3;
-      const double depth = 0.001 + 0.001 * std::sin(2 * pi * t);
-      contacts.instrument(k).pose.position = x + out * (m.radii()[best] - depth + 0.0025 + 0.02);
-      contacts.instrument(k).linear_velocity = -out * 0.002 * pi * std::cos(2 * pi * t);
+      probe.press(contacts, k, 0.001 + 0.001 * std::sin(2 * pi * t),
+                  0.002 * pi * std::cos(2 * pi * t));
       sim.external_forces().setZero();
       contacts.compute(sim.model(), sim.external_forces());
       const auto rep = sim.step(1e-3);
@@ -83,8 +76,8 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i)
     if (std::string(argv[i]) == "--out" && i + 1 < argc) out_path = argv[++i];
   try {
-    const TissueModel<double> model =
-        build::build_model(std::string(FSM_SOURCE_DIR) + "/data/uterus/uterus.json");
+    const TissueModel<double>& model = support::bundled_uterus(
+        [](const std::string& s) { return build::build_model(s); }, "frame_accuracy");
     const Run ref = run(model, 1e-9, false);
     std::fprintf(stderr, "reference: probe force max %.4f N\n",
                  *std::max_element(ref.force.begin(), ref.force.end()));

@@ -28,7 +28,8 @@ SphereModel<double> sample_block(std::vector<Index>& patch) {
   const double h = 0.002;
   SphereModel<double> model;
   add_tetrahedral_part(model, make_cube_lattice<double>(Vector3<double>::Zero(), {10, 10, 5}, h),
-                       model.add_region("sample", bench::paper_tissue<double>()), h / 2);
+                       model.add_region("sample", support::paper::bilinear_tissue<double>()),
+                       h / 2);
   for (Index i = 0; i < model.num_nodes(); ++i) {
     const auto p = model.rest_positions().row(i);
     if (p.z() < 1e-9) model.set_fixed(i);

@@ -14,11 +14,12 @@
 #include <string>
 #include <thread>
 
-#include "fsm/build/builder.hpp"
+#include "fsm/builder/builder.hpp"
 #include "fsm/haptics/scripted_device.hpp"
 #include "fsm/haptics/servo_loop.hpp"
 #include "fsm/implicit_euler_integrator.hpp"
-#include "probe_site.hpp"
+#include "fsm_support/model_cache.hpp"
+#include "fsm_support/probe.hpp"
 
 using namespace fsm;
 using namespace fsm::haptics;
@@ -29,7 +30,7 @@ namespace {
 // A waypoint 1 mm into the part's outermost sphere, along the outward direction, and one 15 mm
 // outside it.
 std::pair<V3, V3> approach(const SphereModel<double>& m, const Part& p) {
-  const examples::ProbeSite site = examples::outermost_free_sphere(m, p);
+  const support::ProbeSite site = support::outermost_free_sphere(m, p);
   const Index best = site.sphere;
   const V3 x = site.centre, out = site.outward;
   const double r = m.radii()[best] + 0.003;  // sphere radius + the probe's
@@ -64,8 +65,8 @@ int main(int argc, char** argv) {
     }
   }
   try {
-    const TissueModel<double> model =
-        build::build_model(std::string(FSM_SOURCE_DIR) + "/data/uterus/uterus.json");
+    const TissueModel<double>& model = support::bundled_uterus(
+        [](const std::string& s) { return build::build_model(s); }, "servo_latency");
     Simulation<double>::Options so;
     so.integrator = integrator;
     so.forces.drag = 5;

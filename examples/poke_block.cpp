@@ -12,6 +12,7 @@
 #include <string>
 
 #include "fsm/fsm.hpp"
+#include "fsm_support/paper.hpp"
 
 namespace {
 
@@ -69,14 +70,9 @@ Args parse(int argc, char** argv) {
 template <typename Scalar>
 int run(const Args& a) {
   using namespace fsm;
-  // The paper's tissue (REFERENCE.md section 6): 13.15 kPa small-strain and 68.38 kPa
-  // large-strain moduli, 10.26 Pa s. The paper does not give the switch strain; 10 % is ours.
-  Material<Scalar> tissue;
-  tissue.density = Scalar(1050);
-  tissue.youngs_modulus = Scalar(13150);
-  tissue.large_strain_modulus = Scalar(68380);
-  tissue.switch_strain = Scalar(0.10);
-  tissue.viscosity = Scalar(10.26);
+  // The paper's tissue (docs/physics.md section 10): 13.15 kPa small-strain and 68.38 kPa
+  // large-strain moduli, 10.26 Pa s, switching at 10 % (ours: the paper does not say).
+  const Material<Scalar> tissue = support::paper::bilinear_tissue<Scalar>();
 
   const double W = 0.020, H = 0.010;
   const Eigen::Vector3i cells(int(std::lround(W / a.spacing)), int(std::lround(W / a.spacing)),

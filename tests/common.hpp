@@ -11,6 +11,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "fsm/fsm.hpp"
+#include "fsm_support/paper.hpp"
 
 namespace fsm::test {
 
@@ -42,10 +43,11 @@ template <typename DA, typename DB>
          << b;
 }
 
+/// The paper's linear tissue (fsm_support/paper.hpp), E (Pa) and eta (Pa s) overridable.
 template <typename Scalar>
-Material<Scalar> tissue(Scalar E = Scalar(13150), Scalar eta = Scalar(10.26)) {
-  Material<Scalar> m;
-  m.density = Scalar(1050);
+Material<Scalar> tissue(Scalar E = Scalar(support::paper::youngs_modulus),
+                        Scalar eta = Scalar(support::paper::viscosity)) {
+  Material<Scalar> m = support::paper::linear_tissue<Scalar>();
   m.youngs_modulus = E;
   m.viscosity = eta;
   return m;
@@ -85,9 +87,9 @@ SphereModel<Scalar> random_model(std::mt19937& rng, Eigen::Vector3i cells = {3, 
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   for (Index i = 0; i < mesh.vertices.rows(); ++i)
     for (int c = 0; c < 3; ++c) mesh.vertices(i, c) += Scalar(double(jitter) * double(h) * u(rng));
-  Material<Scalar> mat = tissue<Scalar>(Scalar(13150), eta);
+  Material<Scalar> mat = tissue<Scalar>(Scalar(support::paper::youngs_modulus), eta);
   if (bilinear) {
-    mat.large_strain_modulus = Scalar(68380);
+    mat.large_strain_modulus = Scalar(support::paper::large_strain_modulus);
     mat.switch_strain = Scalar(0.05);
   }
   SphereModel<Scalar> model;

@@ -158,6 +158,35 @@ TEST(ContactSolver, PenaltyDampingAndFrictionLaws) {
   EXPECT_NEAR(f(0, 0), 0.4 * kc * delta, 1e-4 * kc * delta);
 }
 
+// A model or force array of another size than the solver was sized for is reported, not
+// skipped in silence; refresh() sizes the solver again.
+TEST(ContactSolver, ReportsAModelOfAnotherSize) {
+  SphereModel<double> m = block<double>({2, 2, 2}, 0.004);
+  Instrument<double> ball;
+  ball.shape = SphereShape<double>{0.003};
+  ball.pose.position = m.rest_positions().row(0).transpose();
+  ContactSolver<double> solver(m);
+  solver.add_instrument(ball);
+  EXPECT_EQ(solver.num_nodes(), m.num_nodes());
+  Positions<double> f = Positions<double>::Zero(m.num_nodes(), 3);
+  EXPECT_TRUE(solver.compute(m, f));
+  EXPECT_GT(solver.num_contacts(), 0);
+  Positions<double> short_f = Positions<double>::Zero(m.num_nodes() - 1, 3);
+  EXPECT_FALSE(solver.compute(m, short_f));
+  EXPECT_EQ(solver.num_contacts(), 0);
+  EXPECT_EQ(short_f.norm(), 0.0);
+  m.add_node(V3(1, 1, 1), 0.002, 0.001, 0);
+  f.setZero(m.num_nodes(), 3);
+  EXPECT_FALSE(solver.compute(m, f));
+  EXPECT_EQ(f.norm(), 0.0);
+  EXPECT_EQ(solver.project(m), -1);
+  solver.refresh(m);
+  EXPECT_EQ(solver.num_nodes(), m.num_nodes());
+  EXPECT_TRUE(solver.compute(m, f));
+  EXPECT_GT(solver.num_contacts(), 0);
+  EXPECT_GE(solver.project(m), 1);
+}
+
 // Two parts touching at rest: no force at rest; pressed together they push apart, equal and
 // opposite; linked pairs are left to their links.
 TEST(ContactSolver, PartContactStartsAtTheRestConfiguration) {

@@ -182,7 +182,10 @@ void expect_identical(const TissueModel<double>& a, const TissueModel<double>& b
     EXPECT_EQ(p.first_link, q.first_link) << p.name;
     EXPECT_EQ(p.num_links, q.num_links) << p.name;
     EXPECT_EQ(p.surface, q.surface) << p.name;
+    EXPECT_EQ(p.first_tetrahedron, q.first_tetrahedron) << p.name;
+    EXPECT_EQ(p.num_tetrahedra, q.num_tetrahedra) << p.name;
   }
+  EXPECT_TRUE(same_array(a.tetrahedra, b.tetrahedra)) << "tetrahedra";
   EXPECT_EQ(a.first_attachment_link, b.first_attachment_link);
   EXPECT_EQ(a.num_attachment_links, b.num_attachment_links);
 
@@ -264,7 +267,8 @@ TissueModel<double> make_model() {
   s.velocities()(2, 0) = std::numeric_limits<double>::denorm_min();
 
   m.parts.push_back({"body", Topology::tetrahedral, body, 0.005, a.first_node, a.num_nodes,
-                     a.first_link, a.num_links, 0});
+                     a.first_link, a.num_links, 0, 0, Index(body_mesh.tetrahedra.rows())});
+  m.tetrahedra = body_mesh.tetrahedra.array() + a.first_node;
   m.parts.push_back({"ovary", Topology::grid, ovary, 0.004, b.first_node, b.num_nodes, b.first_link,
                      b.num_links, -1});
   m.parts.push_back({"tube_left", Topology::axis, tube, r_tube, chain, 4, chain_link, 3, 1});
@@ -353,8 +357,15 @@ TEST_F(ModelFile, HeaderFollowsTheDocumentedLayout) {
   EXPECT_EQ(get_le(m_bytes, 28, 4), reference_crc32(m_bytes, 0, 28));
   std::vector<std::string> tags;
   for (const Section& s : sections(m_bytes)) tags.push_back(s.tag);
-  EXPECT_EQ(tags,
-            (std::vector<std::string>{"META", "REGN", "NODE", "LINK", "PART", "ATCH", "SKIN"}));
+  EXPECT_EQ(tags, (std::vector<std::string>{"META", "REGN", "NODE", "LINK", "PART", "ATCH", "SKIN",
+                                            "TETS"}));
+  // The tetrahedra (version 2): one |T| x 4 i32 array.
+  const Section tets = section(m_bytes, "TETS");
+  const auto num_tets = std::uint64_t(m_model.tetrahedra.rows());
+  ASSERT_GT(num_tets, 0u);
+  EXPECT_EQ(get_le(m_bytes, tets.body, 4), num_tets);
+  EXPECT_EQ(get_le(m_bytes, tets.body + 4, 4), 4u);
+  EXPECT_EQ(tets.length, 8 + num_tets * 4 * 4);
   // The link section: |L| x 2 i32 rows, then five |L| x 1 f64 arrays.
   const Section link = section(m_bytes, "LINK");
   const auto num_links = std::uint64_t(m_model.spheres.num_links());
@@ -400,7 +411,7 @@ TEST_F(ModelFile, UnknownSectionsAreSkipped) {
   b.insert(regn.header, extra);
   b += std::string("ZZZZ", 4) + std::string(8, '\0');
   refresh_header(b);
-  ASSERT_EQ(sections(b).size(), 9u);
+  ASSERT_EQ(sections(b).size(), 10u);
   expect_identical(m_model, deserialize_model(b, "extra.fsm"));
 }
 
@@ -497,15 +508,16 @@ TEST_F(ModelFile, ByteFlipsInTheHeaderAreRefused) {
 }
 
 TEST_F(ModelFile, NewerVersionIsRefused) {
+  ASSERT_EQ(model_file_version, 2u);
   std::string b = m_bytes;
-  put_le(b, 8, 2, 4);
-  refresh_header(b);  // a well-formed version 2 file as far as version 1 can tell
-  const Error e = error_from([&] { (void)deserialize_model(b, "v2.fsm"); });
-  EXPECT_EQ(e.file(), "v2.fsm");
-  EXPECT_EQ(e.reason(), "model file version 2 is newer than this runtime (1)");
-  // Even a version 2 file too short for a version 1 header: the version is read first.
-  const Error short_e = error_from([&] { (void)deserialize_model(b.substr(0, 12), "v2.fsm"); });
-  EXPECT_EQ(short_e.reason(), "model file version 2 is newer than this runtime (1)");
+  put_le(b, 8, 3, 4);
+  refresh_header(b);  // a well-formed version 3 file as far as version 2 can tell
+  const Error e = error_from([&] { (void)deserialize_model(b, "v3.fsm"); });
+  EXPECT_EQ(e.file(), "v3.fsm");
+  EXPECT_EQ(e.reason(), "model file version 3 is newer than this runtime (2)");
+  // Even a version 3 file too short for a version 2 header: the version is read first.
+  const Error short_e = error_from([&] { (void)deserialize_model(b.substr(0, 12), "v3.fsm"); });
+  EXPECT_EQ(short_e.reason(), "model file version 3 is newer than this runtime (2)");
 }
 
 TEST_F(ModelFile, RequiredFlagsAreRefusedOptionalFlagsIgnored) {
@@ -666,9 +678,10 @@ TEST_F(ModelFile, PartOutsideTheModelIsRefusedWithTheValidatorsMessage) {
   std::string b = m_bytes;
   const Section part = section(b, "PART");
   // PART: u32 count, then per part: u32 length + name, u8 topology, i32 region, f64 radius,
-  // i32 first_node, i32 num_nodes, ...
+  // i32 first_node, i32 num_nodes, i32 first_link, i32 num_links, i32 surface, i32
+  // first_tetrahedron, i32 num_tetrahedra.
   std::size_t at = part.body + 4;
-  at += 4 + get_le(b, at, 4) + 1 + 4 + 8 + 5 * 4;  // past part 0
+  at += 4 + get_le(b, at, 4) + 1 + 4 + 8 + 7 * 4;  // past part 0
   at += 4 + get_le(b, at, 4) + 1 + 4 + 8 + 4;      // to num_nodes
   ASSERT_EQ(get_le(b, at, 4), std::uint64_t(m_model.parts[1].num_nodes));
   put_le(b, at, 1000, 4);
@@ -676,6 +689,116 @@ TEST_F(ModelFile, PartOutsideTheModelIsRefusedWithTheValidatorsMessage) {
   const Error e = error_from([&] { (void)deserialize_model(b, "bad.fsm"); });
   EXPECT_EQ(e.part(), want.part());
   EXPECT_EQ(e.reason(), want.reason());
+}
+
+// The tetrahedra (version 2) are checked against the part that claims them: a crafted index
+// outside the part, an inverted element or a count that disagrees with the parts is refused with
+// the validator's words.
+TEST_F(ModelFile, TetrahedraAreCheckedAgainstTheirPart) {
+  const Section tets = section(m_bytes, "TETS");
+  const std::size_t first = tets.body + 8;  // row 0, column 0
+  const auto patched = [&](std::size_t at, std::uint64_t v) {
+    std::string b = m_bytes;
+    put_le(b, at, v, 4);
+    refresh_header(b);
+    return b;
+  };
+  struct Case {
+    const char* what;
+    std::string bytes;
+    TissueModel<double> model;
+  };
+  std::vector<Case> cases;
+  {  // a node of another part (the ovary's first)
+    TissueModel<double> bad = m_model;
+    bad.tetrahedra(0, 0) = m_model.parts[1].first_node;
+    cases.push_back({"other part", patched(first, std::uint64_t(bad.tetrahedra(0, 0))), bad});
+  }
+  {  // a node index near 2^31
+    TissueModel<double> bad = m_model;
+    bad.tetrahedra(0, 1) = std::numeric_limits<Index>::max() - 1;
+    cases.push_back({"huge index", patched(first + 4, std::uint64_t(bad.tetrahedra(0, 1))), bad});
+  }
+  {  // inverted: two vertices swapped
+    TissueModel<double> bad = m_model;
+    std::swap(bad.tetrahedra(0, 2), bad.tetrahedra(0, 3));
+    std::string b = m_bytes;
+    put_le(b, first + 8, std::uint64_t(bad.tetrahedra(0, 2)), 4);
+    put_le(b, first + 12, std::uint64_t(bad.tetrahedra(0, 3)), 4);
+    refresh_header(b);
+    cases.push_back({"inverted", b, bad});
+  }
+  for (const Case& c : cases) {
+    const Error want = validation_error(c.model);
+    const Error e = error_from([&] { (void)deserialize_model(c.bytes, "tets.fsm"); });
+    EXPECT_EQ(e.file(), "tets.fsm") << c.what;
+    EXPECT_EQ(e.part(), want.part()) << c.what;
+    EXPECT_EQ(e.reason(), want.reason()) << c.what;
+    EXPECT_NE(e.part().find("tetrahedron 0"), std::string::npos) << c.what << ": " << e.what();
+  }
+  // A part claiming more tetrahedra than the file has, even by a count near 2^31.
+  for (const Index count :
+       {Index(m_model.tetrahedra.rows() + 1), std::numeric_limits<Index>::max()}) {
+    TissueModel<double> bad = m_model;
+    bad.parts[0].num_tetrahedra = count;
+    const Error want = validation_error(bad);
+    EXPECT_EQ(want.reason(), "tetrahedron range outside the model");
+  }
+}
+
+/// The test model as a version 1 writer wrote it: no TETS section, no tetrahedron range in PART.
+std::string as_version_1(const std::string& v2, const TissueModel<double>& model) {
+  std::string b = v2.substr(0, k_header);
+  put_le(b, 8, 1, 4);
+  for (const Section& s : sections(v2)) {
+    if (s.tag == "TETS") continue;
+    std::string body = v2.substr(s.body, s.length);
+    if (s.tag == "PART") {  // drop the two i32 at the end of each part
+      std::string out = body.substr(0, 4);
+      std::size_t at = 4;
+      for (std::size_t k = 0; k < model.parts.size(); ++k) {
+        const std::size_t len = 4 + get_le(body, at, 4) + 1 + 4 + 8 + 5 * 4;
+        out += body.substr(at, len);
+        at += len + 8;
+      }
+      body = out;
+    }
+    std::string header = s.tag + std::string(8, '\0');
+    put_le(header, 4, body.size(), 8);
+    b += header + body;
+  }
+  refresh_header(b);
+  return b;
+}
+
+TEST_F(ModelFile, Version1FilesStillLoad) {
+  // The test model, written as version 1: everything but the tetrahedra comes back.
+  const TissueModel<double> v1 = deserialize_model(as_version_1(m_bytes, m_model), "v1.fsm");
+  TissueModel<double> want = m_model;
+  want.tetrahedra.resize(0, 4);
+  for (Part& p : want.parts) p.first_tetrahedron = p.num_tetrahedra = 0;
+  expect_identical(want, v1);
+  // A file the version 1 builder wrote (tests/data: ovary_left + ligament_left of the bundled
+  // uterus, fsm-build at commit d43657f): it loads, has no tetrahedra, and saves as version 2.
+  const std::string path = std::string(FSM_TEST_DATA_DIR) + "/model_v1_ovary_ligament.fsm";
+  const std::string old = read_bytes(path);
+  ASSERT_GT(old.size(), k_header);
+  ASSERT_EQ(get_le(old, 8, 4), 1u);
+  const TissueModel<double> m = load_model(path);
+  EXPECT_EQ(m.name, "ovary_ligament_v1");
+  EXPECT_EQ(m.spheres.num_nodes(), 39);
+  EXPECT_EQ(m.spheres.num_links(), 153);
+  EXPECT_EQ(m.num_attachment_links, 24);
+  EXPECT_EQ(m.spheres.num_fixed(), 5);
+  ASSERT_EQ(m.parts.size(), 2u);
+  EXPECT_EQ(m.parts[0].name, "ovary_left");
+  EXPECT_EQ(m.parts[0].topology, Topology::tetrahedral);
+  EXPECT_EQ(m.parts[1].topology, Topology::axis);
+  EXPECT_EQ(m.tetrahedra.rows(), 0);
+  EXPECT_EQ(m.parts[0].num_tetrahedra, 0);
+  const std::string again = serialize_model(m);
+  EXPECT_EQ(get_le(again, 8, 4), 2u);
+  expect_identical(m, deserialize_model(again));
 }
 
 TEST_F(ModelFile, WriterRefusesAnInvalidModel) {

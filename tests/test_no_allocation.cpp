@@ -9,6 +9,7 @@
 #include <random>
 
 #include "fsm/fsm.hpp"
+#include "fsm_support/paper.hpp"
 
 #include "counting_allocator.hpp"  // replaces global operator new/delete in this test
 
@@ -23,11 +24,7 @@ SphereModel<Scalar> jittered_block() {
   std::uniform_real_distribution<double> u(-1, 1);
   for (Index i = 0; i < mesh.vertices.rows(); ++i)
     for (int c = 0; c < 3; ++c) mesh.vertices(i, c) += Scalar(0.001 * u(rng));
-  Material<Scalar> m;
-  m.density = 1050;
-  m.youngs_modulus = 13150;
-  m.viscosity = Scalar(10.26);
-  m.large_strain_modulus = 68380;
+  Material<Scalar> m = support::paper::bilinear_tissue<Scalar>();
   m.switch_strain = Scalar(0.05);
   SphereModel<Scalar> model;
   add_tetrahedral_part(model, mesh, model.add_region("block", m), Scalar(0.0025));

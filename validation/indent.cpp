@@ -1,5 +1,5 @@
-// fsm-indent: the paper's indentation experiment (REFERENCE.md section 6) on a model built by the
-// library's own builder from a scene, for the validation against a reference FEM
+// fsm-indent: the paper's indentation experiment (docs/physics.md section 10.6) on a model built by
+// the library's own builder from a scene, for the validation against a reference FEM
 // (docs/validation.md).
 //
 //   fsm-indent SCENE.json --case compression|punch [--depth MM] [--speed MM_PER_MIN]
@@ -23,10 +23,8 @@
 #include <string>
 #include <vector>
 
-#include "../src/build/fillings.hpp"  // the filling's tetrahedra, for the volume term
-#include "fsm/build/builder.hpp"
-#include "fsm/build/mesh_io.hpp"
-#include "fsm/build/scene.hpp"
+#include "fsm/builder/builder.hpp"
+#include "fsm/builder/scene.hpp"
 #include "fsm/fsm.hpp"
 #include "fsm/volume_term.hpp"
 
@@ -149,26 +147,19 @@ int run(const Args& a) {
   }
   if (driven.empty()) throw Error(a.scene, "", "no sphere under the tool");
 
-  // Optional volume term on the filling's tetrahedra (tetrahedral parts only): the builder does
-  // not keep them, so the filling is redone (Mesh_3 is seeded: the same mesh) and checked.
+  // Optional volume term on the filling's tetrahedra (tetrahedral parts only; the model keeps
+  // them).
   VolumeTerm<double> volume;
   double kappa = 0;
   if (a.poisson > 0 || a.kappa > 0) {
     const build::PartSpec& spec = scene.parts[0];
-    if (spec.topology != Topology::tetrahedral)
+    if (tissue.tetrahedra.rows() == 0)
       throw Error(a.scene, spec.name, "the volume term needs a tetrahedral part");
-    const auto surface = build::read_mesh(spec.meshes[0], spec.mesh_scale);
-    const auto metric = spec.metric ? spec.metric : build::isotropic_metric(spec.radius);
-    const auto filling =
-        build::detail::fill_tetrahedral(surface, *metric, spec.optimiser, spec.name);
-    if (filling.mesh.vertices.rows() != n ||
-        (filling.mesh.vertices - Positions<double>(rest)).cwiseAbs().maxCoeff() > 1e-12)
-      throw Error(a.scene, spec.name, "refilling did not reproduce the model's spheres");
     // kappa for the target Poisson's ratio at the network's (scaled) shear modulus.
     kappa = a.kappa >= 0 ? a.kappa
                          : VolumeTerm<double>::bulk_modulus_for(
                                spec.material.youngs_modulus * a.stiffness_scale, a.poisson);
-    volume = VolumeTerm<double>(filling.mesh.tetrahedra, rest, kappa);
+    volume = VolumeTerm<double>(tissue.tetrahedra, rest, kappa);
   }
 
   Simulation<double>::Options opt;

@@ -5,7 +5,7 @@ import os
 
 W, H = 20.0, 10.0  # mm
 
-# The paper's tissue (REFERENCE.md section 6). The switch strain is not given; 10 % is ours (the
+# The paper's tissue (docs/physics.md section 10.6). The switch strain is not given; 10 % is ours (the
 # same as examples/poke_block.cpp).
 BILINEAR = {"density": 1050, "youngs_modulus": 13150, "viscosity": 10.26,
             "large_strain_modulus": 68380, "switch_strain": 0.1}

@@ -17,10 +17,8 @@
 #include <string>
 #include <vector>
 
-#include "../src/build/fillings.hpp"
-#include "fsm/build/builder.hpp"
-#include "fsm/build/mesh_io.hpp"
-#include "fsm/build/scene.hpp"
+#include "fsm/builder/builder.hpp"
+#include "fsm/builder/scene.hpp"
 #include "fsm/fsm.hpp"
 #include "fsm/volume_term.hpp"
 
@@ -101,12 +99,8 @@ int main(int argc, char** argv) {
     const Material<double> mat = scene.parts[0].material;
     const ScalarArray<double> k0 = base.stiffness(), kd0 = base.damping();
 
-    // The filling's tetrahedra for the volume term (the builder does not keep them).
-    const build::PartSpec& spec = scene.parts[0];
-    const auto surface = build::read_mesh(spec.meshes[0], spec.mesh_scale);
-    const auto metric = spec.metric ? spec.metric : build::isotropic_metric(spec.radius);
-    const auto filling =
-        build::detail::fill_tetrahedral(surface, *metric, spec.optimiser, spec.name);
+    // The filling's tetrahedra, for the volume term.
+    const TetrahedronArray& tetrahedra = tissue.tetrahedra;
 
     const std::vector<double> moduli{1e3, 3e3, 1e4, 3e4, 1e5, 3e5};  // Pa
     const std::vector<double> viscosities{0.0, 1.0, 10.26, 100.0};   // Pa s
@@ -129,7 +123,7 @@ int main(int argc, char** argv) {
           double estimate = 0;
           VolumeTerm<double> volume;
           if (vol) {
-            volume = VolumeTerm<double>(filling.mesh.tetrahedra, m.rest_positions(),
+            volume = VolumeTerm<double>(tetrahedra, m.rest_positions(),
                                         VolumeTerm<double>::bulk_modulus_for(E, 0.49));
             estimate = 2 / std::sqrt(volume.omega_max_squared(m.masses(), m.fixed()));
           } else {

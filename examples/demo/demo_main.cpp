@@ -17,16 +17,16 @@
 #include <string>
 #include <thread>
 
-#include "../common/gl_scene.hpp"
-#include "../common/model_cache.hpp"
-#include "../common/probe_site.hpp"
-#include "fsm/build/builder.hpp"
+#include "fsm/builder/builder.hpp"
 #include "fsm/collision/triangle_bvh.hpp"
 #include "fsm/fsm.hpp"
 #include "fsm/haptics/scripted_device.hpp"
 #include "fsm/haptics/servo_loop.hpp"
 #include "fsm/implicit_euler_integrator.hpp"
 #include "fsm/model_file.hpp"
+#include "fsm_support/model_cache.hpp"
+#include "fsm_support/probe.hpp"
+#include "gl_scene.hpp"
 #include "offscreen.hpp"
 
 using namespace fsm;
@@ -82,30 +82,6 @@ Args parse(int argc, char** argv) {
   return a;
 }
 
-// Where the instrument presses a part: its sphere farthest from the model's centre, along the
-// outward direction. The capsule's -z end is the tip; the pose is its centre.
-struct Target {
-  std::string part;
-  Eigen::Quaterniond orientation;
-  V3 pressed, away;
-};
-
-Target target(const TissueModel<double>& model, const std::string& part, double half_length,
-              double radius, double depth) {
-  const SphereModel<double>& m = model.spheres;
-  const Part& p = model.part(part);
-  const examples::ProbeSite site = examples::outermost_free_sphere(m, p);
-  const Index best = site.sphere;
-  const V3 x = site.centre, out = site.outward;
-  Target t;
-  t.part = part;
-  t.orientation = Eigen::Quaterniond::FromTwoVectors(V3::UnitZ(), out);
-  const V3 tip_pressed = x + out * (m.radii()[best] - depth);
-  t.pressed = tip_pressed + out * (half_length + radius);
-  t.away = t.pressed + out * 0.015;
-  return t;
-}
-
 double percentile(std::vector<double> v, double q) {
   if (v.empty()) return 0;
   std::sort(v.begin(), v.end());
@@ -134,9 +110,9 @@ void write_obj(const std::string& path, const TissueModel<double>& model,
 int main(int argc, char** argv) {
   try {
     const Args args = parse(argc, argv);
-    examples::make_dirs(args.out);
-    const examples::OpenedModel opened = examples::open_model(
-        args.model, std::string(FSM_SOURCE_DIR) + "/data",
+    support::make_dirs(args.out);
+    const support::OpenedModel opened = support::open_model(
+        args.model, support::source_data_dir(),
         [](const std::string& scene) { return build::build_model(scene); }, "fsm-demo");
     const TissueModel<double>& model = opened.model;
     const std::string& source = opened.source;
@@ -187,14 +163,16 @@ int main(int argc, char** argv) {
     double t = 0;
     const double slot = (args.seconds - 1.0) / double(visit.size());
     {
-      const Target first = target(model, visit[0], half, shaft_r, 0.003);
+      const support::ProbeTarget first =
+          support::probe_target(model, model.part(visit[0]), shaft_r, half, 0.003);
       script.push_back({0.0, first.away, first.orientation, 0});
       t = 1.0;  // settle under gravity
       script.push_back({t, first.away, first.orientation, 0});
     }
     for (const std::string& part : visit) {
-      const Target tg =
-          target(model, part, half, shaft_r, part == "body" || part == "fibroid" ? 0.004 : 0.0025);
+      const support::ProbeTarget tg =
+          support::probe_target(model, model.part(part), shaft_r, half,
+                                part == "body" || part == "fibroid" ? 0.004 : 0.0025);
       script.push_back({t + 0.25 * slot, tg.away, tg.orientation, 0});
       script.push_back({t + 0.5 * slot, tg.pressed, tg.orientation, 1});
       script.push_back({t + 0.7 * slot, tg.pressed, tg.orientation, 1});

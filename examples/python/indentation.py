@@ -1,4 +1,4 @@
-"""The paper's indentation experiment on a virtual tissue sample (REFERENCE.md section 6).
+"""The paper's indentation experiment on a virtual tissue sample (docs/physics.md section 10.6).
 
 A 20 x 20 x 10 mm block of the paper's bilinear tissue (13.15 / 68.38 kPa, 10.26 Pa s) is filled
 with spheres as in examples/poke_block.cpp, its bottom is clamped, and a rigid 4 x 4 mm flat punch

@@ -10,8 +10,8 @@
 #define STBI_ONLY_PNG
 #include <stb/stb_image.h>
 
-#include "../common/gl_scene.hpp"
 #include "fsm/error.hpp"
+#include "gl_scene.hpp"
 
 namespace fsm::examples {
 

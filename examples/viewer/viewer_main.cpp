@@ -26,15 +26,15 @@
 #include <string>
 #include <thread>
 
-#include "../common/gl_scene.hpp"
-#include "../common/model_cache.hpp"
-#include "../common/probe_site.hpp"
 #include "fsm/fsm.hpp"
 #include "fsm/haptics/touch_device.hpp"
+#include "fsm_support/model_cache.hpp"
+#include "fsm_support/probe.hpp"
+#include "gl_scene.hpp"
 #include "mouse_device.hpp"
 #include "screenshot_check.hpp"
 #ifdef FSM_VIEWER_HAS_BUILDER
-#include "fsm/build/builder.hpp"
+#include "fsm/builder/builder.hpp"
 #endif
 
 using namespace fsm;
@@ -134,35 +134,18 @@ TissueModel<double> build_scene(const std::string& scene) {
 
 // ---- The scripted probe: presses each part in turn, from outside, for ten minutes.
 
-struct Target {
-  Eigen::Quaterniond orientation;
-  V3 pressed, away;
-};
-
-// Where the instrument presses a part: its sphere farthest from the model's centre, along the
-// outward direction. The capsule's -z end is the tip; the pose is its centre.
-Target target(const TissueModel<double>& model, const Part& p, double depth) {
-  const SphereModel<double>& m = model.spheres;
-  const examples::ProbeSite site = examples::outermost_free_sphere(m, p);
-  const Index best = site.sphere;
-  const V3 x = site.centre, out = site.outward;
-  Target t;
-  t.orientation = Eigen::Quaterniond::FromTwoVectors(V3::UnitZ(), out);
-  t.pressed = x + out * (m.radii()[best] - depth + kHalfLength + kShaftRadius);
-  t.away = t.pressed + out * 0.015;
-  return t;
-}
-
 std::vector<Waypoint> probe_script(const TissueModel<double>& model) {
   std::vector<Waypoint> script;
   const double slot = 2.5, total = 600;
-  const Target first = target(model, model.parts.front(), 0.003);
+  const support::ProbeTarget first =
+      support::probe_target(model, model.parts.front(), kShaftRadius, kHalfLength, 0.003);
   script.push_back({0.0, first.away, first.orientation, 0});
   for (double t = 0; t < total;) {
     for (const Part& p : model.parts) {
       if (p.num_nodes == 0) continue;
       const double depth = p.name == "body" || p.name == "fibroid" ? 0.004 : 0.0025;
-      const Target tg = target(model, p, depth);
+      const support::ProbeTarget tg =
+          support::probe_target(model, p, kShaftRadius, kHalfLength, depth);
       script.push_back({t + 0.25 * slot, tg.away, tg.orientation, 0});
       script.push_back({t + 0.5 * slot, tg.pressed, tg.orientation, 1});
       script.push_back({t + 0.7 * slot, tg.pressed, tg.orientation, 1});
@@ -339,9 +322,7 @@ int run(const Args& args) {
 
   // Load before opening the window (a first run builds the model).
   const TissueModel<double> model =
-      examples::open_model(args.model, std::string(FSM_SOURCE_DIR) + "/data", build_scene,
-                           "fsm-viewer")
-          .model;
+      support::open_model(args.model, support::source_data_dir(), build_scene, "fsm-viewer").model;
   if (model.skin.num_vertices() == 0 || model.parts.empty())
     throw Error(args.model, "fsm-viewer", "the model has no render surface to show");
 

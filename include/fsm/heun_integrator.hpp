@@ -7,10 +7,10 @@
 
 namespace fsm {
 
-/// @brief Heun's method on \f$\mathbf{z} = (\mathbf{x}, \mathbf{v})\f$ (REFERENCE.md section 2,
-/// eq. 9): \f$\mathbf{z}_{n+1} = \mathbf{z}_n + \tfrac{h}{2}[\mathbf{f}(\mathbf{z}_n) +
-/// \mathbf{f}(\mathbf{z}_n + h\mathbf{f}(\mathbf{z}_n))]\f$, two force evaluations per step:
-/// \f[ \tilde{\mathbf{x}} = \mathbf{x} + h\mathbf{v},\quad \tilde{\mathbf{v}} = \mathbf{v} +
+/// @brief Heun's method on \f$\mathbf{z} = (\mathbf{x}, \mathbf{v})\f$ (docs/physics.md
+/// section 10.2, eq. 9): \f$\mathbf{z}_{n+1} = \mathbf{z}_n + \tfrac{h}{2}[\mathbf{f}(\mathbf{z}_n)
+/// + \mathbf{f}(\mathbf{z}_n + h\mathbf{f}(\mathbf{z}_n))]\f$, two force evaluations per step: \f[
+/// \tilde{\mathbf{x}} = \mathbf{x} + h\mathbf{v},\quad \tilde{\mathbf{v}} = \mathbf{v} +
 ///     h\mathbf{a}_1,\quad \mathbf{x}_{n+1} = \mathbf{x} + \tfrac{h}{2}(\mathbf{v} +
 ///     \tilde{\mathbf{v}}),\quad \mathbf{v}_{n+1} = \mathbf{v} + \tfrac{h}{2}(\mathbf{a}_1 +
 ///     \tilde{\mathbf{a}}). \f]

@@ -7,7 +7,7 @@
 
 namespace fsm {
 
-/// @brief The "improved Euler" update the paper iterates (REFERENCE.md section 2, eq. 10):
+/// @brief The "improved Euler" update the paper iterates (docs/physics.md section 10.2, eq. 10):
 /// \f[ \mathbf{v}_{n+1} = \mathbf{v}_n + h\,\mathbf{M}^{-1}\mathbf{F}(\mathbf{x}_n, \mathbf{v}_n),
 ///     \qquad \mathbf{x}_{n+1} = \mathbf{x}_n + \tfrac{h}{2}(\mathbf{v}_n + \mathbf{v}_{n+1}). \f]
 /// First order (the velocity update is forward Euler). Stable only with enough damping:

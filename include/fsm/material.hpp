@@ -13,7 +13,7 @@
 
 namespace fsm {
 
-/// @brief A homogeneous, isotropic Voigt material (REFERENCE.md section 1, eq. 2):
+/// @brief A homogeneous, isotropic Voigt material (docs/physics.md section 10.1, eq. 2):
 /// \f$\sigma = E\varepsilon + \eta\dot\varepsilon\f$, optionally bilinear in \f$E\f$.
 template <typename Scalar>
 struct Material {

@@ -21,10 +21,12 @@ namespace fsm {
 
 /// @brief Current format version written by save_model().
 ///
-/// A reader accepts every version up to its own and refuses a newer one ("model file version 2
-/// is newer than this runtime (1)"). The version goes up when an older reader would misread a
-/// file; additions an older reader may ignore go into new sections at the same version.
-inline constexpr std::uint32_t model_file_version = 1;
+/// A reader accepts every version up to its own and refuses a newer one ("model file version 3
+/// is newer than this runtime (2)"). Version 2 added the tetrahedral parts' tetrahedra (section
+/// `TETS`, and each part's range of them); a version 1 file loads with none. The version goes up
+/// when an older reader would misread a file; additions an older reader may ignore go into new
+/// sections at the same version.
+inline constexpr std::uint32_t model_file_version = 2;
 
 /// @brief Writes `model` to the file `path` (created or overwritten) in the current format.
 ///

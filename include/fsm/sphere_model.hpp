@@ -33,7 +33,7 @@ struct Region {
 /// **Mass rule.** A node's mass is stored explicitly. The builders set it from the region's
 /// density: add_tetrahedral_part() lumps \f$\rho\sum_{T\ni i} V_T/4\f$ onto each vertex (total
 /// mass exact on any mesh); distribute_region_mass() gives every node of a region the same share
-/// \f$\rho V/N\f$ (the paper's homogeneous-region rule, REFERENCE.md section 1).
+/// \f$\rho V/N\f$ (the paper's homogeneous-region rule, docs/physics.md section 10.1).
 ///
 /// Every add_* call checks its input and throws fsm::Error naming the element and the reason.
 /// The arrays are also writable in place; validate() re-checks everything, and Simulation calls

@@ -2,7 +2,7 @@
 
 /// @file stability.hpp
 /// @brief Bounds on a model's highest eigenfrequency and damping rate, and the largest stable
-/// step of each explicit scheme for them (REFERENCE.md section 2).
+/// step of each explicit scheme for them (docs/physics.md section 10.2).
 
 #include <algorithm>
 #include <cmath>

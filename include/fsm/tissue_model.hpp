@@ -4,6 +4,8 @@
 /// @brief TissueModel: everything a model file holds — the sphere model, its parts and the skinned
 /// render surface — as built offline and loaded by the runtime.
 
+#include <algorithm>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -44,6 +46,9 @@ struct Part {
   Index first_node{0}, num_nodes{0};
   Index first_link{0}, num_links{0};  ///< Links inside the part (attachments are listed apart).
   Index surface{-1};                  ///< Index into Skin::surfaces, or -1.
+  /// Its rows of TissueModel::tetrahedra (tetrahedral parts; none for the others, and none in a
+  /// model file of format version 1).
+  Index first_tetrahedron{0}, num_tetrahedra{0};
 };
 
 /// @brief A built model: spheres, parts, attachment links, render surfaces.
@@ -55,7 +60,17 @@ struct TissueModel {
   Index first_attachment_link{0};  ///< Attachment links between parts are the last links.
   Index num_attachment_links{0};
   Skin<Scalar> skin;
+  /// The tetrahedra of the tetrahedral parts' fillings, `|T| x 4` node indices into `spheres`,
+  /// each positively oriented at rest and inside its part's node range (Part::first_tetrahedron).
+  /// A tetrahedral part's links are these tetrahedra's edges; force laws that act on elements use
+  /// the tetrahedra themselves.
+  TetrahedronArray tetrahedra;
   std::string report_json;  ///< The builder's report (JSON text), kept for provenance.
+
+  /// @brief Part `p`'s tetrahedra (`|T_p| x 4` node indices into `spheres`).
+  [[nodiscard]] auto part_tetrahedra(const Part& p) const {
+    return tetrahedra.middleRows(p.first_tetrahedron, p.num_tetrahedra);
+  }
 
   /// @brief The part of that name; fsm::Error listing the names otherwise.
   [[nodiscard]] const Part& part(const std::string& part_name) const {
@@ -67,21 +82,69 @@ struct TissueModel {
     throw Error("", "part '" + part_name + "'", "no such part; the model has " + names);
   }
 
-  /// @brief Checks the spheres, the part ranges and the skin; throws fsm::Error.
+  /// @brief Checks the spheres, the part ranges, the tetrahedra and the skin; throws fsm::Error
+  /// naming the element and the reason. Ranges are compared in 64 bits, so no count or index (a
+  /// crafted file's near 2^31) can overflow the check.
   void validate() const {
     spheres.validate();
+    const auto inside = [](Index first, Index count, Index size) {
+      return first >= 0 && count >= 0 && std::int64_t(first) + std::int64_t(count) <= size;
+    };
+    const Index num_tets = Index(tetrahedra.rows());
     for (const Part& p : parts) {
       const std::string what = "part '" + p.name + "'";
       if (p.region < 0 || p.region >= spheres.num_regions()) throw Error("", what, "bad region");
-      if (p.first_node < 0 || p.num_nodes < 0 || p.first_node + p.num_nodes > spheres.num_nodes())
+      if (!inside(p.first_node, p.num_nodes, spheres.num_nodes()))
         throw Error("", what, "node range outside the model");
-      if (p.first_link < 0 || p.num_links < 0 || p.first_link + p.num_links > spheres.num_links())
+      if (!inside(p.first_link, p.num_links, spheres.num_links()))
         throw Error("", what, "link range outside the model");
-      if (p.surface >= Index(skin.surfaces.size()))
+      if (p.surface < -1 || p.surface >= Index(skin.surfaces.size()))
         throw Error("", what, "surface index out of range");
+      if (!inside(p.first_tetrahedron, p.num_tetrahedra, num_tets))
+        throw Error("", what, "tetrahedron range outside the model");
+      if (p.num_tetrahedra > 0 && p.topology != Topology::tetrahedral)
+        throw Error(
+            "", what,
+            std::string("a part of topology '") + to_string(p.topology) + "' has tetrahedra");
+      for (Index t = p.first_tetrahedron; t < p.first_tetrahedron + p.num_tetrahedra; ++t) {
+        const std::string tet = what + " tetrahedron " + std::to_string(t - p.first_tetrahedron);
+        for (int k = 0; k < 4; ++k) {
+          const Index i = tetrahedra(t, k);
+          if (i < p.first_node || i - p.first_node >= p.num_nodes)
+            throw Error("", tet,
+                        "node " + std::to_string(i) + " is outside the part's nodes [" +
+                            std::to_string(p.first_node) + ", " +
+                            std::to_string(std::int64_t(p.first_node) + p.num_nodes) + ")");
+        }
+        const auto x = spheres.rest_positions();
+        const Vector3<Scalar> a = x.row(tetrahedra(t, 0)).transpose();
+        const Vector3<Scalar> e1 = x.row(tetrahedra(t, 1)).transpose() - a;
+        const Vector3<Scalar> e2 = x.row(tetrahedra(t, 2)).transpose() - a;
+        const Vector3<Scalar> e3 = x.row(tetrahedra(t, 3)).transpose() - a;
+        const Scalar six_v = e1.dot(e2.cross(e3));
+        const Scalar edge = std::max({e1.norm(), e2.norm(), e3.norm()});
+        // As TetrahedralMesh::validate: |V| at least 1e-12 of the (longest) edge cubed.
+        if (!(six_v > Scalar(6e-12) * edge * edge * edge))
+          throw Error(
+              "", tet,
+              "is inverted or degenerate at rest (6V = " + std::to_string(double(six_v)) + " m^3)");
+      }
     }
-    if (first_attachment_link < 0 || num_attachment_links < 0 ||
-        first_attachment_link + num_attachment_links > spheres.num_links())
+    // The parts' tetrahedra follow one another in part order and cover the array exactly.
+    std::int64_t next = 0;
+    for (const Part& p : parts) {
+      if (p.num_tetrahedra == 0) continue;
+      if (p.first_tetrahedron != next)
+        throw Error("", "part '" + p.name + "'",
+                    "its tetrahedra start at " + std::to_string(p.first_tetrahedron) +
+                        ", not where the previous part's end (" + std::to_string(next) + ")");
+      next += p.num_tetrahedra;
+    }
+    if (next != num_tets)
+      throw Error(
+          "", "tetrahedra",
+          std::to_string(num_tets) + " tetrahedra, but the parts claim " + std::to_string(next));
+    if (!inside(first_attachment_link, num_attachment_links, spheres.num_links()))
       throw Error("", "attachments", "link range outside the model");
     if (skin.num_vertices() > 0) skin.validate(spheres.num_nodes());
   }

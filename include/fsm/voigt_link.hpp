@@ -26,7 +26,7 @@ enum class DampingModel {
 /// With \f$\mathbf{d} = \mathbf{x}_j - \mathbf{x}_i\f$, \f$l = |\mathbf{d}|\f$,
 /// \f$\mathbf{n} = \mathbf{d}/l\f$ and \f$\mathbf{u} = \mathbf{v}_j - \mathbf{v}_i\f$, the force
 /// on sphere \f$i\f$ is (the paper's eq. 4-6 with the sign that pulls a stretched link together,
-/// see REFERENCE.md section 1)
+/// see docs/physics.md section 10.1)
 /// \f[ \mathbf{F}_i = \big[f_e(l - l_0) + k_d\,(\mathbf{u}\cdot\mathbf{n})\big]\,\mathbf{n},
 ///     \qquad \mathbf{F}_j = -\mathbf{F}_i, \f]
 /// where the elastic force is linear, \f$f_e(e) = k_s e\f$, or bilinear: \f$k_s e\f$ up to the

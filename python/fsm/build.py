@@ -1,27 +1,15 @@
-"""The model builder (GPL-3.0-or-later: it links CGAL). A separate extension from the runtime, so
-``import fsm`` stays BSD-licensed; ``import fsm.build`` when you build models.
+"""``fsm.build``: the model builder, provided by the separate ``fsm-builder`` distribution.
 
-    import fsm, fsm.build
-    model, report, table = fsm.build.build_model("data/uterus/uterus.json")
-    print(table)
-    fsm.save_model("uterus.fsm", model)
+The builder links CGAL and is GPL-3.0-or-later, so it is not part of this (BSD-3-Clause) package:
+install it beside ``fsm`` (``pip install --no-build-isolation python/builder`` from a source
+checkout) and ``import fsm.build`` finds it. See ``fsm_builder`` for the functions.
 """
 
-import json as _json
-
-from ._fsm_build import build_model as _build_model
-from ._fsm_build import inspect_mesh, read_mesh, write_uterus_scene  # noqa: F401
-
-
-def build_model(scene):
-    """Builds a scene file (docs/scene.md).
-
-    Returns ``(model, report, table)``: the :class:`fsm.TissueModel`, the build report as a dict
-    (fields in docs/builder.md) and the Table-1-like text table. Raises :class:`fsm.Error` naming
-    the file, the part and the reason for bad input.
-    """
-    model, report_json, table = _build_model(str(scene))
-    return model, _json.loads(report_json), table
-
-
-__all__ = ["build_model", "inspect_mesh", "read_mesh", "write_uterus_scene"]
+try:
+    from fsm_builder import *  # noqa: F401,F403
+    from fsm_builder import __all__  # noqa: F401
+except ImportError as _e:  # pragma: no cover - depends on what is installed
+    raise ImportError(
+        "fsm.build needs the fsm-builder distribution (GPL-3.0-or-later, it links CGAL), which is "
+        "installed separately from fsm: pip install --no-build-isolation python/builder"
+    ) from _e

@@ -4,6 +4,7 @@
 // and shape checks with useful messages.
 
 #include <pybind11/eigen.h>
+#include <pybind11/functional.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -45,30 +46,62 @@ void assign_rows3(Map&& dst,
   std::copy(src.data(), src.data() + rows * 3, dst.data());
 }
 
-// The C++ solver skips compute() and project() silently when the model's size differs from the
-// one it was sized for (they are noexcept); Python should hear about it, so the bound class
-// remembers the size.
-class BoundContactSolver : public collision::ContactSolver<Scalar> {
- public:
-  BoundContactSolver(const SphereModel<Scalar>& model,
-                     const collision::ContactOptions<Scalar>& options)
-      : collision::ContactSolver<Scalar>(model, options), m_nodes(model.num_nodes()) {}
-  void refresh(const SphereModel<Scalar>& model) {
-    collision::ContactSolver<Scalar>::refresh(model);
-    m_nodes = model.num_nodes();
-  }
-  [[nodiscard]] Index num_nodes() const noexcept { return m_nodes; }
-  void check(const SphereModel<Scalar>& model, const char* what) const {
-    if (model.num_nodes() != m_nodes)
-      throw Error("", what,
-                  "has " + std::to_string(model.num_nodes()) +
-                      " spheres but the solver was sized for " + std::to_string(m_nodes) +
-                      " (call refresh(model) after growing the model)");
-  }
+/// The array type the bindings take for float input: converted to C-contiguous float64.
+using Array = py::array_t<Scalar, py::array::c_style | py::array::forcecast>;
 
- private:
-  Index m_nodes{0};
-};
+/// "(2, 3)": a numpy array's shape as Python prints it.
+inline std::string shape_string(const py::array& a) {
+  std::string s = "(";
+  for (py::ssize_t d = 0; d < a.ndim(); ++d) s += (d ? ", " : "") + std::to_string(a.shape(d));
+  return s + (a.ndim() == 1 ? ",)" : ")");
+}
+
+/// A (rows x 3) array from numpy (copied); fsm::Error with the shape got and wanted.
+inline Positions<Scalar> rows3(const Array& a, const char* what) {
+  if (a.ndim() != 2 || a.shape(1) != 3)
+    throw Error("", what, "has shape " + shape_string(a) + ", wanted (n, 3)");
+  Positions<Scalar> out(a.shape(0), 3);
+  std::copy(a.data(), a.data() + a.size(), out.data());
+  return out;
+}
+
+/// A length-3 vector from numpy; fsm::Error with the shape got and wanted.
+inline Vector3<Scalar> vec3(const Array& a, const char* what) {
+  if (a.size() != 3 || a.ndim() > 2)
+    throw Error("", what, "has shape " + shape_string(a) + ", wanted (3,)");
+  return Vector3<Scalar>(a.data()[0], a.data()[1], a.data()[2]);
+}
+
+// A read-write length-3 property that reads as a numpy view of the member (writing into it
+// changes the object) and accepts any length-3 sequence.
+template <typename C>
+void vec3_property(py::class_<C>& c, const char* name, Vector3<Scalar> C::*member,
+                   const char* doc) {
+  c.def_property(
+      name,
+      [member](py::object self) {
+        C& obj = self.cast<C&>();
+        return view((obj.*member).data(), 3, 0, self);
+      },
+      [member, name](C& obj, const Array& v) {
+        const Vector3<Scalar> x = vec3(v, name);
+        if (!x.allFinite()) throw Error("", name, "is not finite");
+        obj.*member = x;
+      },
+      doc);
+}
+
+/// A unit quaternion from (w, x, y, z); fsm::Error for a zero or non-finite one.
+inline Eigen::Quaterniond to_quaternion(const Eigen::Vector4d& wxyz) {
+  Eigen::Quaterniond q(wxyz[0], wxyz[1], wxyz[2], wxyz[3]);
+  if (!(q.norm() > 0) || !q.coeffs().allFinite())
+    throw Error("", "orientation", "needs a non-zero, finite quaternion (w, x, y, z)");
+  return q.normalized();
+}
+/// (w, x, y, z) of a quaternion.
+inline Eigen::Vector4d to_wxyz(const Eigen::Quaterniond& q) {
+  return {q.w(), q.x(), q.y(), q.z()};
+}
 
 void define_material(py::module_& m);
 void define_sphere_model(py::module_& m);
@@ -76,8 +109,12 @@ void define_tetrahedral_mesh(py::module_& m);
 void define_integrators(py::module_& m);
 void define_simulation(py::module_& m);
 void define_tissue_model(py::module_& m);
-void define_collision(py::module_& m);
-void define_haptics(py::module_& m);
+void define_shapes(py::module_& m);
+void define_contact(py::module_& m);
+void define_triangle_bvh(py::module_& m);
+void define_haptic_device(py::module_& m);
+void define_scripted_device(py::module_& m);
+void define_servo_loop(py::module_& m);
 void define_volume_term(py::module_& m);
 
 }  // namespace fsm::python

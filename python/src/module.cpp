@@ -16,7 +16,11 @@ argument, and the reason, e.g. "instrument 'probe': friction must be non-negativ
   fsm::python::define_integrators(m);
   fsm::python::define_simulation(m);
   fsm::python::define_tissue_model(m);
-  fsm::python::define_collision(m);
-  fsm::python::define_haptics(m);
+  fsm::python::define_shapes(m);
+  fsm::python::define_contact(m);
+  fsm::python::define_triangle_bvh(m);
+  fsm::python::define_haptic_device(m);
+  fsm::python::define_scripted_device(m);
+  fsm::python::define_servo_loop(m);
   fsm::python::define_volume_term(m);
 }

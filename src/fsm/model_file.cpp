@@ -17,7 +17,8 @@ namespace fsm {
 
 namespace {
 
-// --- Constants of format version 1 --------------------------------------------------------------
+// --- Constants of format versions 1 and 2
+// ---------------------------------------------------------
 
 // PNG-style: a non-ASCII first byte catches 7-bit transfers, CR LF catches newline conversion,
 // 0x1A stops a DOS `type`.
@@ -39,9 +40,15 @@ constexpr std::string_view k_tag_links = "LINK";
 constexpr std::string_view k_tag_parts = "PART";
 constexpr std::string_view k_tag_attachments = "ATCH";
 constexpr std::string_view k_tag_skin = "SKIN";
-constexpr std::array<std::string_view, 7> k_required_tags{
+constexpr std::string_view k_tag_tetrahedra = "TETS";  // from version 2
+constexpr std::array<std::string_view, 8> k_known_tags{
     k_tag_meta,  k_tag_regions,     k_tag_nodes, k_tag_links,
-    k_tag_parts, k_tag_attachments, k_tag_skin};
+    k_tag_parts, k_tag_attachments, k_tag_skin,  k_tag_tetrahedra};
+
+// Whether a file of `version` has (and must have) the section `tag`.
+bool in_version(std::string_view tag, std::uint32_t version) noexcept {
+  return tag != k_tag_tetrahedra || version >= 2;
+}
 
 // --- CRC-32 (IEEE 802.3, reflected polynomial 0xEDB88320, as in zlib, PNG and gzip) -----------
 
@@ -367,6 +374,8 @@ void write_sections(Writer& w, const TissueModel<double>& model) {
     w.i32(p.first_link);
     w.i32(p.num_links);
     w.i32(p.surface);
+    w.i32(p.first_tetrahedron);
+    w.i32(p.num_tetrahedra);
   }
   w.end_section(at);
 
@@ -393,6 +402,10 @@ void write_sections(Writer& w, const TissueModel<double>& model) {
   w.matrix(skin.offsets, "skin offsets");
   w.matrix(skin.chain_nodes, "chain nodes");
   w.matrix(skin.chain_rest_tangents, "chain rest tangents");
+  w.end_section(at);
+
+  at = w.begin_section(k_tag_tetrahedra);
+  w.matrix(model.tetrahedra, "tetrahedra");
   w.end_section(at);
 }
 
@@ -457,7 +470,7 @@ StoredLinks read_links(Reader& r) {
   return l;
 }
 
-std::vector<Part> read_parts(Reader& r) {
+std::vector<Part> read_parts(Reader& r, std::uint32_t version) {
   std::vector<Part> parts;
   const std::uint32_t n = r.u32("part count");
   for (std::uint32_t k = 0; k < n; ++k) {
@@ -474,6 +487,10 @@ std::vector<Part> read_parts(Reader& r) {
     p.first_link = r.i32("first link");
     p.num_links = r.i32("link count");
     p.surface = r.i32("surface");
+    if (version >= 2) {
+      p.first_tetrahedron = r.i32("first tetrahedron");
+      p.num_tetrahedra = r.i32("tetrahedron count");
+    }
     parts.push_back(std::move(p));
   }
   return parts;
@@ -552,7 +569,7 @@ TissueModel<double> parse(std::string_view bytes, const std::string& file) {
                 "model file version " + std::to_string(version) + " is newer than this runtime (" +
                     std::to_string(model_file_version) + ")");
 
-  // 2. The rest of the (version 1) header.
+  // 2. The rest of the header (the same in versions 1 and 2).
   if (bytes.size() < k_header_size) throw truncated_header();
   const std::uint32_t header_crc = get_u32(bytes.data() + k_header_crc_at);
   const std::uint32_t header_crc_now = crc32(bytes.substr(0, k_header_crc_at));
@@ -595,13 +612,14 @@ TissueModel<double> parse(std::string_view bytes, const std::string& file) {
                       std::to_string(framing.remaining()) + " remain in the payload");
     const std::string_view body = framing.take(std::size_t(length), "a section");
     bool known = false;
-    for (const std::string_view t : k_required_tags) known = known || t == tag;
+    for (const std::string_view t : k_known_tags)
+      known = known || (t == tag && in_version(t, version));
     if (!known) continue;  // a later version's addition
     if (!sections.emplace(tag, body).second)
       throw Error(file, section_part(tag), "malformed: the section appears twice");
   }
-  for (const std::string_view t : k_required_tags)
-    if (sections.find(t) == sections.end())
+  for (const std::string_view t : k_known_tags)
+    if (in_version(t, version) && sections.find(t) == sections.end())
       throw Error(file, section_part(t), "malformed: the section is missing");
 
   // 4. Section contents.
@@ -618,9 +636,11 @@ TissueModel<double> parse(std::string_view bytes, const std::string& file) {
   section(k_tag_regions, [&](Reader& r) { regions = read_regions(r); });
   section(k_tag_nodes, [&](Reader& r) { nodes = read_nodes(r); });
   section(k_tag_links, [&](Reader& r) { links = read_links(r); });
-  section(k_tag_parts, [&](Reader& r) { model.parts = read_parts(r); });
+  section(k_tag_parts, [&](Reader& r) { model.parts = read_parts(r, version); });
   section(k_tag_attachments, [&](Reader& r) { read_attachments(r, model); });
   section(k_tag_skin, [&](Reader& r) { read_skin(r, model.skin); });
+  if (version >= 2)
+    section(k_tag_tetrahedra, [&](Reader& r) { r.matrix(model.tetrahedra, "tetrahedra"); });
 
   // 5. The model itself, checked as any model is; the checker's message names the file.
   try {
@@ -643,7 +663,7 @@ std::string serialize_model(const TissueModel<double>& model) {
   const std::string_view payload = std::string_view(out).substr(k_header_size);
   std::memcpy(&out[0], k_magic.data(), k_magic_size);
   put_u32(&out[8], model_file_version);
-  put_u32(&out[12], 0);  // flags: none in version 1
+  put_u32(&out[12], 0);  // flags: none defined
   put_u64(&out[16], std::uint64_t(payload.size()));
   put_u32(&out[24], crc32(payload));
   put_u32(&out[k_header_crc_at], crc32(std::string_view(out).substr(0, k_header_crc_at)));

@@ -11,6 +11,25 @@ mkdir -p "$work"
 mkdir -p "$work/src"
 tar -C "$src" --exclude="./build*" --exclude=./.git --exclude=./.venv -cf - . | tar -C "$work/src" -xf -
 "$work/venv/bin/pip" install --no-build-isolation --no-index --quiet "$work/src"
+cd "$work"  # not where a build tree's fsm/ could shadow the installed one
+# The runtime wheel is BSD and holds no GPL code: no builder extension, and fsm.build says where
+# the builder is.
+"$work/venv/bin/python" - <<'PY'
+import glob, os, fsm
+here = os.path.dirname(fsm.__file__)
+assert not glob.glob(os.path.join(here, "*fsm_build*")), os.listdir(here)
+try:
+    import fsm.build  # noqa: F401
+    raise SystemExit("fsm.build imported without the fsm-builder distribution")
+except ImportError as e:
+    assert "fsm-builder" in str(e), e
+PY
+"$work/venv/bin/pip" show fsm > "$work/fsm.meta"
+grep -q "^License: BSD-3-Clause" "$work/fsm.meta"
+# The builder (GPL) as its own distribution.
+"$work/venv/bin/pip" install --no-build-isolation --no-index --quiet "$work/src/python/builder"
+"$work/venv/bin/pip" show fsm-builder > "$work/fsm-builder.meta"
+grep -q "^License: GPL-3.0-or-later" "$work/fsm-builder.meta"
 cd "$work"
 FSM_SRC="$work/src" "$work/venv/bin/python" - <<'PY'
 import fsm, fsm.build, numpy as np

@@ -1,11 +1,13 @@
-# Installs the project into a scratch prefix, then configures, builds and runs the downstream
-# project in this folder against it with find_package(fsm).
+cmake_minimum_required(VERSION 3.21)
+# Installs the project twice into scratch prefixes and builds downstream projects against each:
+#   runtime/  `--component runtime` only: no GPL file; find_package(fsm) gives fsm::fsm and no
+#             fsm::build;
+#   full/     every component: find_package(fsm COMPONENTS touch build) gives all three.
 foreach(v SOURCE_DIR BINARY_DIR WORK_DIR GENERATOR)
   if(NOT DEFINED ${v})
     message(FATAL_ERROR "${v} not set")
   endif()
 endforeach()
-set(prefix ${WORK_DIR}/prefix)
 file(REMOVE_RECURSE ${WORK_DIR})
 function(run)
   execute_process(COMMAND ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
@@ -14,8 +16,41 @@ function(run)
   endif()
   message(STATUS "${out}")
 endfunction()
-run(${CMAKE_COMMAND} --install ${BINARY_DIR} --prefix ${prefix})
-run(${CMAKE_COMMAND} -S ${SOURCE_DIR}/tests/packaging -B ${WORK_DIR}/build -G ${GENERATOR}
-    -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_BUILD_TYPE=Release)
-run(${CMAKE_COMMAND} --build ${WORK_DIR}/build)
-run(${WORK_DIR}/build/downstream)
+
+# 1. The runtime alone.
+set(rt ${WORK_DIR}/runtime)
+run(${CMAKE_COMMAND} --install ${BINARY_DIR} --prefix ${rt}/prefix --component runtime)
+file(GLOB_RECURSE installed RELATIVE ${rt}/prefix ${rt}/prefix/*)
+foreach(f ${installed})
+  if(f MATCHES "builder|fsm_build|fsm-build|make-uterus|fsmBuildTargets")
+    message(FATAL_ERROR "the runtime install contains a builder (GPL) file: ${f}")
+  endif()
+endforeach()
+file(GLOB_RECURSE headers ${rt}/prefix/include/*.hpp)
+foreach(h ${headers})
+  file(STRINGS ${h} gpl REGEX "GPL|#include <CGAL")
+  if(gpl)
+    message(FATAL_ERROR "runtime header ${h} is GPL or includes CGAL: ${gpl}")
+  endif()
+endforeach()
+run(${CMAKE_COMMAND} -S ${SOURCE_DIR}/tests/packaging -B ${rt}/build -G ${GENERATOR}
+    -DCMAKE_PREFIX_PATH=${rt}/prefix -DCMAKE_BUILD_TYPE=Release -DFSM_EXPECT_RUNTIME_ONLY=ON)
+run(${CMAKE_COMMAND} --build ${rt}/build)
+run(${rt}/build/downstream)
+
+# 2. Everything, with the components.
+set(full ${WORK_DIR}/full)
+run(${CMAKE_COMMAND} --install ${BINARY_DIR} --prefix ${full}/prefix)
+set(want "touch")
+if(EXISTS ${full}/prefix/include/fsm/builder)
+  list(APPEND want build)
+endif()
+string(REPLACE ";" "\\;" want_arg "${want}")
+run(${CMAKE_COMMAND} -S ${SOURCE_DIR}/tests/packaging -B ${full}/build -G ${GENERATOR}
+    -DCMAKE_PREFIX_PATH=${full}/prefix -DCMAKE_BUILD_TYPE=Release "-DFSM_WANT=${want_arg}")
+run(${CMAKE_COMMAND} --build ${full}/build)
+run(${full}/build/downstream)
+run(${full}/build/downstream_touch)
+if("build" IN_LIST want)
+  run(${full}/build/downstream_build ${SOURCE_DIR}/data/uterus/fibroid.obj)
+endif()

@@ -86,7 +86,9 @@ struct ContactOptions {
 /// compute() reads the model's positions and velocities, finds contacts (spatial hash broad
 /// phase, closed-form or GJK narrow phase), and adds the contact forces to an external-force array
 /// (pass Simulation::external_forces() after setting your own loads); each instrument's wrench is
-/// minus the sum of what it applies. It allocates nothing and never throws.
+/// minus the sum of what it applies. It allocates nothing and never throws; a model of another
+/// size than the solver was sized for is reported by its return value, as TriangleBvh::refit()
+/// and Integrator::step() report theirs.
 ///
 /// Instrument-sphere contact: penalty \f$f_n = \max(0, k\delta + c\dot\delta)\f$ along the contact
 /// normal (never pulling), plus regularised Coulomb friction on the tangential slip. Sphere-sphere
@@ -113,11 +115,17 @@ class ContactSolver {
   [[nodiscard]] const ContactOptions<Scalar>& options() const noexcept { return m_options; }
 
   /// @brief Finds contacts at the model's state and adds their forces to `forces` (`|V| x 3`, N).
-  void compute(const SphereModel<Scalar>& model, Eigen::Ref<Positions<Scalar>> forces) noexcept;
+  /// @return false, with nothing found and `forces` untouched, when the model or `forces` does not
+  /// have the num_nodes() rows the solver was sized for (call refresh() after growing the model).
+  bool compute(const SphereModel<Scalar>& model, Eigen::Ref<Positions<Scalar>> forces) noexcept;
 
   /// @brief Moves every sphere that penetrates an instrument out of it along the contact normal
-  /// (position projection; call after a step). Returns how many spheres moved.
+  /// (position projection; call after a step). Returns how many spheres moved, or -1 (nothing
+  /// moved) when the model does not have num_nodes() spheres.
   Index project(SphereModel<Scalar>& model) noexcept;
+
+  /// @brief The sphere count the solver was sized for (by the constructor or refresh()).
+  [[nodiscard]] Index num_nodes() const noexcept { return Index(m_next.size()); }
 
   /// @brief The contacts of the last compute() (at most options().max_contacts).
   [[nodiscard]] const Contact<Scalar>* contacts() const noexcept { return m_contacts.data(); }

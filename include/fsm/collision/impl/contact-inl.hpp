@@ -184,13 +184,13 @@ void ContactSolver<Scalar>::record(const Contact<Scalar>& c) noexcept {
 }
 
 template <typename Scalar>
-void ContactSolver<Scalar>::compute(const SphereModel<Scalar>& model,
+bool ContactSolver<Scalar>::compute(const SphereModel<Scalar>& model,
                                     Eigen::Ref<Positions<Scalar>> forces) noexcept {
   m_num_contacts = 0;
   m_overflow = false;
   m_candidates = m_narrow_tests = 0;
   for (auto& w : m_wrenches) w = Wrench<Scalar>{};
-  if (Index(m_next.size()) != model.num_nodes() || forces.rows() != model.num_nodes()) return;
+  if (num_nodes() != model.num_nodes() || forces.rows() != model.num_nodes()) return false;
   update_hash(model);
   const auto x = model.positions();
   const auto v = model.velocities();
@@ -233,7 +233,7 @@ void ContactSolver<Scalar>::compute(const SphereModel<Scalar>& model,
   }
 
   // Parts against parts (and folding within a part, when asked).
-  if (!m_options.part_contact && !m_options.self_contact) return;
+  if (!m_options.part_contact && !m_options.self_contact) return true;
   const Scalar skin = m_options.verlet_skin;
   bool rebuild = !m_list_valid || !(skin > 0);
   if (!rebuild) {  // has any sphere moved more than half the skin since the list was built?
@@ -259,10 +259,11 @@ void ContactSolver<Scalar>::compute(const SphereModel<Scalar>& model,
     if (!fits) {  // rare: more candidate pairs than reserved; handle this step by scanning
       for_each_part_pair(model, Scalar(0),
                          [&](Index i, Index j) { part_contact(model, i, j, forces); });
-      return;
+      return true;
     }
   }
   for (const auto& [i, j] : m_pairs) part_contact(model, i, j, forces);
+  return true;
 }
 
 // Every candidate pair (i, j) for part contact whose spheres are within reach + extra, once each.
@@ -345,7 +346,7 @@ void ContactSolver<Scalar>::part_contact(const SphereModel<Scalar>& model, Index
 
 template <typename Scalar>
 Index ContactSolver<Scalar>::project(SphereModel<Scalar>& model) noexcept {
-  if (Index(m_next.size()) != model.num_nodes()) return 0;
+  if (num_nodes() != model.num_nodes()) return -1;
   update_hash(model);
   auto x = model.positions();
   auto v = model.velocities();

@@ -1,0 +1,79 @@
+#pragma once
+
+/// @file build/builder.hpp
+/// @brief HybridTopologyBuilder: a scene in, a TissueModel (spheres, parts, attachments, fixed
+/// nodes, skinned render surface) and a build report out.
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "fsm/builder/mesh_io.hpp"
+#include "fsm/builder/scene.hpp"
+#include "fsm/tissue_model.hpp"
+
+namespace fsm::build {
+
+/// @brief Quality of a tetrahedral filling, measured in its metric.
+struct QualityStats {
+  Index tetrahedra{0};
+  double q_min{0}, q_mean{0}, q_max{0};  ///< Q(K), 1 = regular.
+  double fraction_q_1_3{0};              ///< Share of elements with Q in [1, 3].
+  std::vector<Index> histogram;  ///< Counts in [1,1.5), [1.5,2), [2,3), [3,5), [5,10), [10,inf).
+  double min_dihedral_deg{0};
+  double mean_edge{0};  ///< m
+};
+
+/// @brief One part's line of the report (the paper's Table 1 and more).
+struct PartReport {
+  std::string name;
+  Topology topology{Topology::tetrahedral};
+  double radius{0};  ///< m
+  Index spheres{0}, links{0};
+  QualityStats quality;  ///< Tetrahedral parts only.
+  Index surface_vertices{0}, surface_faces{0};
+  double volume{0};   ///< m^3 of the surface the part was filled from
+  double mass{0};     ///< kg
+  double seconds{0};  ///< Wall time to build the part.
+  std::vector<MeshReport> meshes;
+  std::string metric;     ///< Tetrahedral: the metric's description.
+  std::string optimiser;  ///< Tetrahedral: the optimiser used.
+};
+
+/// @brief What a build produced.
+struct BuildReport {
+  std::string scene;
+  std::vector<PartReport> parts;
+  Index spheres{0}, links{0}, attachment_links{0}, fixed_nodes{0};
+  double seconds{0};
+
+  /// @brief A Table-1-like text table.
+  [[nodiscard]] std::string table() const;
+  /// @brief The same as JSON (field names in docs/builder.md).
+  [[nodiscard]] std::string json() const;
+};
+
+/// @brief Builds a scene into a TissueModel.
+class HybridTopologyBuilder {
+ public:
+  /// Called with (part, stage, fraction done of the whole build in [0, 1]).
+  using Progress = std::function<void(const std::string&, const std::string&, double)>;
+
+  explicit HybridTopologyBuilder(Scene scene);
+  void set_progress(Progress progress) { m_progress = std::move(progress); }
+  /// @brief Builds every part, joins them, fixes anchors, binds the render surface. fsm::Error
+  /// naming file, part and reason on bad input; the scene is left untouched.
+  TissueModel<double> build();
+  [[nodiscard]] const BuildReport& report() const noexcept { return m_report; }
+  [[nodiscard]] const Scene& scene() const noexcept { return m_scene; }
+
+ private:
+  Scene m_scene;
+  Progress m_progress;
+  BuildReport m_report;
+};
+
+/// @brief One-off: load a scene file and build it.
+TissueModel<double> build_model(const std::string& scene_path, BuildReport* report = nullptr);
+
+}  // namespace fsm::build

@@ -1,0 +1,317 @@
+// collision/contact.hpp: instruments, contact options, the ContactSolver and its wrenches.
+// compute() writes contact forces straight into the caller's numpy array (no copy), so the
+// array must already be float64, C-contiguous, writeable and |V| x 3: Simulation.external_forces
+// is exactly that.
+
+#include <cstring>
+#include <vector>
+
+#include "common.hpp"
+#include "fsm/collision/contact.hpp"
+
+namespace fsm::python {
+
+namespace {
+namespace fc = fsm::collision;
+using Pose = fc::Pose<Scalar>;
+using Shape = fc::Shape<Scalar>;
+using Instrument = fc::Instrument<Scalar>;
+using Options = fc::ContactOptions<Scalar>;
+using Wrench = fc::Wrench<Scalar>;
+using Contact = fc::Contact<Scalar>;
+using Solver = fc::ContactSolver<Scalar>;
+using Model = SphereModel<Scalar>;
+using Sim = Simulation<Scalar>;
+
+// Forces as a writable numpy array over the caller's memory, checked without converting:
+// a conversion would write into a temporary and lose the forces.
+Eigen::Map<Positions<Scalar>> force_map(py::array& forces, Index rows) {
+  if (!py::isinstance<py::array_t<Scalar>>(forces) || forces.dtype().kind() != 'f' ||
+      forces.itemsize() != sizeof(Scalar))
+    throw Error("", "forces", "must be a float64 numpy array (e.g. Simulation.external_forces)");
+  if (forces.ndim() != 2 || forces.shape(0) != rows || forces.shape(1) != 3)
+    throw Error("", "forces",
+                "has shape " + shape_string(forces) + ", wanted (" + std::to_string(rows) + ", 3)");
+  if (!(forces.flags() & py::array::c_style))
+    throw Error("", "forces",
+                "must be C-contiguous (row-major): the solver writes into it in place");
+  if (!forces.writeable()) throw Error("", "forces", "is read-only");
+  return Eigen::Map<Positions<Scalar>>(static_cast<Scalar*>(forces.mutable_data()), rows, 3);
+}
+
+// The numpy dtype of a Contact record, with the C++ struct's own offsets (so a copy is a memcpy).
+py::dtype contact_dtype() {
+  const Contact c{};
+  const auto at = [&c](const void* p) {
+    return py::int_(static_cast<const char*>(p) - reinterpret_cast<const char*>(&c));
+  };
+  py::dict d;
+  d["names"] = py::make_tuple("sphere", "instrument", "other", "normal", "depth", "point", "force");
+  d["formats"] = py::make_tuple("<i4", "<i4", "<i4", "(3,)<f8", "<f8", "(3,)<f8", "(3,)<f8");
+  d["offsets"] = py::make_tuple(at(&c.sphere), at(&c.instrument), at(&c.other), at(c.normal.data()),
+                                at(&c.depth), at(c.point.data()), at(c.force.data()));
+  d["itemsize"] = py::int_(sizeof(Contact));
+  return py::dtype::from_args(d);
+}
+
+// What compute() and project() report as `false` / -1, in words.
+Error size_error(const Solver& s, const Model& model, const char* what) {
+  return Error("", what,
+               "has " + std::to_string(model.num_nodes()) +
+                   " spheres but the solver was sized for " + std::to_string(s.num_nodes()) +
+                   " (call refresh(model) after growing the model)");
+}
+
+static_assert(sizeof(Index) == 4, "the contact dtype says int32");
+}  // namespace
+
+void define_contact(py::module_& m) {
+  // ---- instruments and options -----------------------------------------------------------------
+  py::class_<Instrument> instrument(m, "Instrument", R"(A rigid instrument posed by a device.
+
+Instrument(shape, pose=Pose(), name="", linear_velocity=(0, 0, 0), angular_velocity=(0, 0, 0),
+           friction=0.2, enabled=True)
+
+shape is a SphereShape, CapsuleShape, CylinderShape or ConvexHullShape; pose places it (m);
+linear_velocity (m/s) is that of the pose origin and angular_velocity (rad/s) is in the world
+frame (both feed contact damping and friction); friction is the Coulomb coefficient against tissue.
+pose, linear_velocity and angular_velocity read as views: inst.pose.position[2] -= 1e-3 moves it.)");
+  instrument
+      .def(py::init(
+               [](const Shape& shape, const Pose& at, const std::string& name,
+                  const Vector3<Scalar>& v, const Vector3<Scalar>& w, Scalar friction,
+                  bool enabled) { return Instrument{name, shape, at, v, w, friction, enabled}; }),
+           py::arg("shape"), py::arg("pose") = Pose{}, py::arg("name") = "",
+           py::arg("linear_velocity") = Vector3<Scalar>::Zero().eval(),
+           py::arg("angular_velocity") = Vector3<Scalar>::Zero().eval(), py::arg("friction") = 0.2,
+           py::arg("enabled") = true)
+      .def_readwrite("name", &Instrument::name, "a label used in error messages")
+      .def_property(
+          "shape", [](const Instrument& i) { return i.shape; },
+          [](Instrument& i, const Shape& s) {
+            fc::validate(s, "instrument '" + i.name + "' shape");
+            i.shape = s;
+          },
+          "the shape (a copy; assign a new one to change it, which is validated)")
+      .def_readwrite("pose", &Instrument::pose, "the Pose (m); mutable in place")
+      .def_readwrite("friction", &Instrument::friction, "Coulomb coefficient (dimensionless)")
+      .def_readwrite("enabled", &Instrument::enabled, "False: the instrument touches nothing")
+      .def("__repr__", [](const Instrument& i) {
+        return "Instrument('" + i.name + "', enabled=" + (i.enabled ? "True" : "False") + ")";
+      });
+
+  vec3_property(instrument, "linear_velocity", &Instrument::linear_velocity,
+                "velocity of the pose origin (m/s), a view");
+  vec3_property(instrument, "angular_velocity", &Instrument::angular_velocity,
+                "angular velocity, world frame (rad/s), a view");
+
+  py::class_<Wrench>(m, "Wrench",
+                     R"(Force (N) and torque (N m, about the pose origin) the tissue exerts on an
+instrument; what a haptic device renders (its negative is what the instrument applies).)")
+      .def_readonly("force", &Wrench::force, "N, world frame")
+      .def_readonly("torque", &Wrench::torque, "N m about the instrument's pose origin")
+      .def("__repr__", [](const Wrench& w) {
+        return "Wrench(force=(" + std::to_string(w.force.x()) + ", " + std::to_string(w.force.y()) +
+               ", " + std::to_string(w.force.z()) + "))";
+      });
+
+  py::class_<Options>(m, "ContactOptions", R"(How contacts respond (SI units).
+
+ContactOptions(stiffness_scale=2, damping_ratio=0.5, friction_speed=1e-3, part_contact=True,
+               self_contact=False, part_friction=0, max_contacts=4096, spatial_hash=True,
+               verlet_skin=0.002, time_step=1e-3)
+
+stiffness_scale s: penalty stiffness k = s E r (N/m) from the sphere's region modulus E (Pa) and
+radius r (m). damping_ratio zeta: contact damping c = 2 zeta sqrt(k m). friction_speed (m/s):
+regularisation of Coulomb friction. part_contact: spheres of different regions collide;
+self_contact: spheres of one region far apart at rest collide (folding). part_friction: Coulomb
+coefficient between parts. max_contacts: length of the contact list. spatial_hash: False tests
+every sphere (the reference). verlet_skin (m): slack of the part-contact pair list. time_step (s):
+the step the forces will be applied over; it caps each sphere's contact stiffness so the explicit
+contact force stays stable (0 removes the cap). Validated when a ContactSolver is made.)")
+      .def(
+          py::init([](Scalar stiffness_scale, Scalar damping_ratio, Scalar friction_speed,
+                      bool part_contact, bool self_contact, Scalar part_friction,
+                      Index max_contacts, bool spatial_hash, Scalar verlet_skin, Scalar time_step) {
+            Options o;
+            o.stiffness_scale = stiffness_scale;
+            o.damping_ratio = damping_ratio;
+            o.friction_speed = friction_speed;
+            o.part_contact = part_contact;
+            o.self_contact = self_contact;
+            o.part_friction = part_friction;
+            o.max_contacts = max_contacts;
+            o.spatial_hash = spatial_hash;
+            o.verlet_skin = verlet_skin;
+            o.time_step = time_step;
+            return o;
+          }),
+          py::arg("stiffness_scale") = 2.0, py::arg("damping_ratio") = 0.5,
+          py::arg("friction_speed") = 1e-3, py::arg("part_contact") = true,
+          py::arg("self_contact") = false, py::arg("part_friction") = 0.0,
+          py::arg("max_contacts") = 4096, py::arg("spatial_hash") = true,
+          py::arg("verlet_skin") = 0.002, py::arg("time_step") = 1e-3)
+      .def_readwrite("stiffness_scale", &Options::stiffness_scale, "s in k = s E r")
+      .def_readwrite("damping_ratio", &Options::damping_ratio, "zeta in c = 2 zeta sqrt(k m)")
+      .def_readwrite("friction_speed", &Options::friction_speed, "m/s")
+      .def_readwrite("part_contact", &Options::part_contact, "spheres of different regions collide")
+      .def_readwrite("self_contact", &Options::self_contact,
+                     "spheres of one region far apart at rest collide (folding)")
+      .def_readwrite("part_friction", &Options::part_friction, "Coulomb coefficient between parts")
+      .def_readwrite("max_contacts", &Options::max_contacts,
+                     "length of the contact list (allocated once)")
+      .def_readwrite("spatial_hash", &Options::spatial_hash,
+                     "False tests every sphere (the reference the tests compare with)")
+      .def_readwrite("verlet_skin", &Options::verlet_skin, "m")
+      .def_readwrite("time_step", &Options::time_step, "s (0: no stiffness cap)");
+
+  // ---- the solver ------------------------------------------------------------------------------
+  py::class_<Solver>(m, "ContactSolver",
+                     R"(Contact detection and response for one SphereModel.
+
+ContactSolver(model, options=ContactOptions())   # model: a SphereModel, e.g. sim.model
+ContactSolver(simulation, options=ContactOptions())
+
+Each step: set your own loads in sim.external_forces (contact forces are *added*), call
+solver.compute(sim) (or compute(sim.model, sim.external_forces)), then sim.step(dt). compute()
+finds instrument-sphere and part-part contacts (spatial hash, closed forms or GJK), writes the
+penalty + damping + friction forces into the force array in place, and records each
+instrument's wrench (minus the sum of what it applies), the contacts and work counters.
+
+    solver = fsm.ContactSolver(sim.model)
+    tip = solver.add_instrument(fsm.Instrument(fsm.SphereShape(0.002), fsm.Pose((0, 0, 0.01))))
+    for _ in range(100):
+        solver.instrument(tip).pose.position[2] -= 1e-5
+        sim.external_forces[:] = 0
+        solver.compute(sim)
+        sim.step(1e-3)
+    print(solver.wrench(tip).force)
+
+Raises fsm.Error for bad options or a bad model; the GIL is released inside compute() and
+project().)")
+      .def(py::init([](const Model& model, const Options& options) {
+             return std::make_unique<Solver>(model, options);
+           }),
+           py::arg("model"), py::arg("options") = Options{},
+           "Sizes the solver for a SphereModel (allocates).")
+      .def(py::init([](Sim& sim, const Options& options) {
+             return std::make_unique<Solver>(sim.model(), options);
+           }),
+           py::arg("simulation"), py::arg("options") = Options{},
+           "Sizes the solver for a Simulation's model.")
+      .def("refresh", &Solver::refresh, py::arg("model"),
+           "Re-reads the model after adding nodes or links, or changing radii.")
+      .def(
+          "add_instrument", [](Solver& s, const Instrument& i) { return s.add_instrument(i); },
+          py::arg("instrument"),
+          R"(Adds a copy of an Instrument; returns its index. fsm.Error for a bad shape, pose or
+friction. Invalidates Instrument references taken earlier with instrument(i).)")
+      .def(
+          "instrument",
+          [](Solver& s, Index i) -> Instrument& {
+            if (i < 0 || i >= s.num_instruments())
+              throw py::index_error("instrument " + std::to_string(i) + " of " +
+                                    std::to_string(s.num_instruments()));
+            return s.instrument(i);
+          },
+          py::arg("index"), py::return_value_policy::reference_internal,
+          R"(Instrument i, by reference: set its pose and velocities here each frame. The reference
+is valid until the next add_instrument().)")
+      .def_property_readonly(
+          "num_instruments", [](const Solver& s) { return s.num_instruments(); },
+          "how many instruments were added")
+      .def_property_readonly("num_nodes", &Solver::num_nodes,
+                             "the sphere count the solver was sized for")
+      .def_property_readonly(
+          "options", [](const Solver& s) { return s.options(); }, "a copy")
+      .def(
+          "compute",
+          [](Solver& s, const Model& model, py::array forces) {
+            auto f = force_map(forces, model.num_nodes());
+            bool sized = false;
+            {
+              py::gil_scoped_release release;
+              sized = s.compute(model, f);
+            }
+            if (!sized) throw size_error(s, model, "model");
+            return s.num_contacts();
+          },
+          py::arg("model"), py::arg("forces"),
+          R"(Finds contacts at the model's state and *adds* their forces (N) to forces in place.
+
+forces must be a float64, C-contiguous, writeable (|V|, 3) numpy array; pass
+sim.external_forces, which is a view of the simulation's own array, so the next sim.step() sees
+the contact forces. Returns the number of contacts recorded. fsm.Error for a wrong array (no
+silent copy is ever made) or a model of another size.)")
+      .def(
+          "compute",
+          [](Solver& s, Sim& sim) {
+            bool sized = false;
+            {
+              py::gil_scoped_release release;
+              sized = s.compute(sim.model(), sim.external_forces());
+            }
+            if (!sized) throw size_error(s, sim.model(), "simulation model");
+            return s.num_contacts();
+          },
+          py::arg("simulation"),
+          "compute(sim.model, sim.external_forces): adds contact forces to the simulation's "
+          "external forces.")
+      .def(
+          "project",
+          [](Solver& s, Model& model) {
+            Index moved = 0;
+            {
+              py::gil_scoped_release release;
+              moved = s.project(model);
+            }
+            if (moved < 0) throw size_error(s, model, "model");
+            return moved;
+          },
+          py::arg("model"),
+          R"(Moves every free sphere that penetrates an instrument out along the contact normal and
+removes its velocity into the instrument (call after a step). Returns how many moved.)")
+      .def(
+          "wrench",
+          [](const Solver& s, Index i) {
+            if (i < 0 || i >= s.num_instruments())
+              throw py::index_error("instrument " + std::to_string(i) + " of " +
+                                    std::to_string(s.num_instruments()));
+            return s.wrench(i);
+          },
+          py::arg("index"),
+          "The Wrench (force N, torque N m) tissue exerted on instrument i in the last compute().")
+      .def_property_readonly(
+          "contacts",
+          [](const Solver& s) {
+            py::array out(contact_dtype(), std::vector<py::ssize_t>{py::ssize_t(s.num_contacts())});
+            if (s.num_contacts() > 0)
+              std::memcpy(out.mutable_data(), s.contacts(), sizeof(Contact) * s.num_contacts());
+            return out;
+          },
+          R"(The contacts of the last compute() as a numpy structured array (a copy), fields:
+sphere, instrument (-1 for sphere-sphere), other (the other sphere or -1) as int32; normal (3,),
+depth (m), point (3,) (m) and force (3,) (N, on `sphere`; `other` gets -force) as float64.)")
+      .def_property_readonly(
+          "num_contacts", [](const Solver& s) { return s.num_contacts(); },
+          "contacts recorded by the last compute()")
+      .def_property_readonly(
+          "overflowed", [](const Solver& s) { return s.overflowed(); },
+          "True when the last compute() found more than max_contacts (their "
+          "forces were still applied; only the list is short)")
+      .def_property_readonly(
+          "candidates", [](const Solver& s) { return s.candidates(); },
+          "candidate pairs from the broad phase in the last compute()")
+      .def_property_readonly(
+          "narrow_tests", [](const Solver& s) { return s.narrow_tests(); },
+          "narrow-phase tests in the last compute()")
+      .def_property_readonly(
+          "pair_list_rebuilds", [](const Solver& s) { return s.pair_list_rebuilds(); },
+          "part-contact pair list rebuilds since construction")
+      .def("__repr__", [](const Solver& s) {
+        return "ContactSolver(" + std::to_string(s.num_nodes()) + " spheres, " +
+               std::to_string(s.num_instruments()) + " instruments)";
+      });
+}
+
+}  // namespace fsm::python

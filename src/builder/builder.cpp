@@ -1,0 +1,618 @@
+// HybridTopologyBuilder: per part, read and check the surface, fill it, then join the parts,
+// fix anchors, bind the render surface and report.
+
+#include "fsm/builder/builder.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <numeric>
+#include <sstream>
+
+#include "fsm/builder/fillings.hpp"
+#include "fsm/error.hpp"
+#include "skin_binding.hpp"
+
+namespace fsm::build {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+std::string join(const std::vector<std::string>& v, const char* sep) {
+  std::string s;
+  for (const auto& x : v) s += (s.empty() ? "" : sep) + x;
+  return s;
+}
+
+// What a part contributes before it is placed in the model.
+struct PartOutcome {
+  PartReport report;
+  TriangleMesh<double> surface;              // the closed surface that was filled
+  std::vector<TriangleMesh<double>> render;  // the input meshes, rendered as given
+  // Exactly one of these is used, by topology.
+  TetraFilling tetra;
+  AxisFilling axis;
+  GridFilling grid;
+  PackingFilling packing;
+};
+
+// Reads the part's meshes, reports their defects, applies the requested repairs and returns the
+// closed surface to fill; fsm::Error naming file, part and defect otherwise.
+TriangleMesh<double> prepare_surface(const PartSpec& spec, PartOutcome& out) {
+  const std::string where = "part '" + spec.name + "'";
+  for (const std::string& path : spec.meshes) {
+    TriangleMesh<double> m = read_mesh(path, spec.mesh_scale);
+    out.report.meshes.push_back(inspect_mesh(m, path));
+    out.render.push_back(std::move(m));
+  }
+  if (spec.wrap) {
+    TriangleMesh<double> wrapped = alpha_wrap(out.render, spec.wrap->alpha, spec.wrap->offset);
+    MeshReport r = inspect_mesh(wrapped, "alpha wrap");
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "alpha wrap of %zu mesh(es), alpha %.3g mm, offset %.3g mm",
+                  out.render.size(), spec.wrap->alpha * 1e3, spec.wrap->offset * 1e3);
+    r.repairs.push_back(buf);
+    if (!r.bounds_a_volume())
+      throw Error(spec.meshes.front(), spec.name,
+                  "the alpha wrap does not bound a volume: " + join(r.defects(), ", "));
+    out.report.meshes.push_back(r);
+    return wrapped;
+  }
+  if (out.render.size() > 1)
+    throw Error(
+        spec.meshes[1], spec.name,
+        "a part filled from " + std::to_string(out.render.size()) +
+            " meshes needs \"repair\": {\"alpha_wrap\": ...} to join them into one surface");
+  TriangleMesh<double> surface = out.render.front();
+  MeshReport& r = out.report.meshes.front();
+  if (spec.orient && !r.outward_oriented && r.closed() && r.manifold()) {
+    surface = orient_outward(surface, spec.meshes.front());
+    r = inspect_mesh(surface, spec.meshes.front());
+    r.repairs.push_back("faces reoriented outward");
+    out.render.front() = surface;
+  }
+  if (!r.bounds_a_volume()) {
+    std::string hint =
+        r.closed() && r.manifold() && r.self_intersections == 0 && !r.outward_oriented
+            ? "; add \"repair\": {\"orient\": true}"
+            : "; add \"repair\": {\"alpha_wrap\": {...}} to wrap it";
+    throw Error(spec.meshes.front(), spec.name,
+                "the mesh does not bound a volume: " + join(r.defects(), ", ") + hint);
+  }
+  (void)where;
+  return surface;
+}
+
+// Links of the grid baseline: E-to-k per neighbour set (docs/builder.md).
+double grid_factor(int neighbours, std::uint8_t kind) {
+  if (neighbours == 6) return 1.0;              // bar: k = E s^2 / s
+  if (neighbours == 18) return 0.4;             // isotropic: k1 = k2 = 2 E s / 5
+  return kind == 0 ? 22.0 / 35.0 : 6.0 / 35.0;  // 26, isotropic with k2 = k3
+}
+
+}  // namespace
+
+HybridTopologyBuilder::HybridTopologyBuilder(Scene scene) : m_scene(std::move(scene)) {
+  if (m_scene.parts.empty()) throw Error(m_scene.file, "scene", "has no parts");
+}
+
+namespace {
+
+// The state the stages of one build share.
+struct Build {
+  const Scene& scene;
+  const HybridTopologyBuilder::Progress& progress;
+  TissueModel<double> model;
+  std::vector<PartOutcome> outcomes;
+  std::map<std::string, std::size_t> part_index;
+  std::vector<std::vector<std::size_t>> joined;  // per part: the parts attached to it
+
+  void report_progress(const std::string& part, const std::string& stage, double f) const {
+    if (progress) progress(part, stage, f);
+  }
+};
+
+// Stage 1: read, check and fill every part.
+void fill_parts(Build& b) {
+  const std::size_t np = b.scene.parts.size();
+  b.outcomes.resize(np);
+  for (std::size_t p = 0; p < np; ++p) {
+    const PartSpec& spec = b.scene.parts[p];
+    b.part_index[spec.name] = p;
+    PartOutcome& out = b.outcomes[p];
+    const auto t0 = Clock::now();
+    out.report.name = spec.name;
+    out.report.topology = spec.topology;
+    out.report.radius = spec.radius;
+    b.report_progress(spec.name, "reading meshes", double(p) / double(np));
+    try {
+      out.surface = prepare_surface(spec, out);
+    } catch (const Error& e) {
+      if (e.part().empty()) throw Error(e.file(), spec.name, e.reason());
+      throw;
+    }
+    out.report.volume = out.surface.volume();
+    b.report_progress(spec.name, std::string("filling (") + to_string(spec.topology) + ")",
+                      (double(p) + 0.3) / double(np));
+    switch (spec.topology) {
+      case Topology::tetrahedral: {
+        const auto metric = spec.metric ? spec.metric : isotropic_metric(spec.radius);
+        out.tetra = fill_tetrahedral(out.surface, *metric, spec.optimiser, spec.name);
+        out.report.quality = out.tetra.quality;
+        out.report.metric = metric->describe();
+        out.report.optimiser = out.tetra.optimiser;
+        break;
+      }
+      case Topology::axis:
+        out.axis = fill_axis(out.surface, spec.axis, spec.radius, spec.name);
+        break;
+      case Topology::grid: {
+        const double s = spec.grid.spacing > 0 ? spec.grid.spacing : 2 * spec.radius;
+        out.grid = fill_grid(out.surface, s, spec.grid.neighbours, spec.name);
+        break;
+      }
+      case Topology::packing: {
+        const double rmin =
+            spec.packing.radius_min > 0 ? spec.packing.radius_min : 0.5 * spec.radius;
+        const double rmax =
+            spec.packing.radius_max > 0 ? spec.packing.radius_max : 2.0 * spec.radius;
+        if (rmin > rmax)
+          throw Error(b.scene.file, spec.name, "packing radius_min exceeds radius_max");
+        out.packing = fill_packing(out.surface, rmin, rmax, spec.name);
+        break;
+      }
+    }
+    out.report.seconds = since(t0);
+  }
+}
+
+// Stage 2: place the parts in one SphereModel, a region per part; a tetrahedral part keeps its
+// tetrahedra.
+void place_parts(Build& b) {
+  SphereModel<double>& spheres = b.model.spheres;
+  std::vector<Eigen::Matrix<Index, 1, 4>> tetrahedra;
+  for (std::size_t p = 0; p < b.scene.parts.size(); ++p) {
+    const PartSpec& spec = b.scene.parts[p];
+    PartOutcome& out = b.outcomes[p];
+    const auto t0 = Clock::now();
+    b.report_progress(spec.name, "linking", 0.8);
+    Part part;
+    part.name = spec.name;
+    part.topology = spec.topology;
+    part.radius = spec.radius;
+    part.region = spheres.add_region(spec.name, spec.material);
+    part.first_node = spheres.num_nodes();
+    part.first_link = spheres.num_links();
+    part.first_tetrahedron = Index(tetrahedra.size());
+    const Material<double>& mat = spec.material;
+    const double volume = std::abs(out.report.volume);
+    auto add_nodes = [&](const Positions<double>& c, const Eigen::VectorXd& radii,
+                         const Eigen::VectorXd& weight) {
+      const double total = weight.sum();
+      for (Index i = 0; i < Index(c.rows()); ++i)
+        spheres.add_node(c.row(i).transpose(), radii[i], mat.density * volume * weight[i] / total,
+                         part.region);
+    };
+    switch (spec.topology) {
+      case Topology::tetrahedral: {
+        add_tetrahedral_part(spheres, out.tetra.mesh, part.region, spec.radius);
+        // Lumped masses add up to rho times the filling's volume, which misses a thin shell of
+        // the surface (the boundary is within h/4 of it): scale them to the organ's rho V.
+        const Index n = spheres.num_nodes() - part.first_node;
+        spheres.masses().segment(part.first_node, n) *= volume / out.tetra.mesh.volume();
+        for (Index t = 0; t < out.tetra.mesh.tetrahedra.rows(); ++t)
+          tetrahedra.push_back(out.tetra.mesh.tetrahedra.row(t).array() + part.first_node);
+        break;
+      }
+      case Topology::axis: {
+        const auto& a = out.axis;
+        // Mass in proportion to r^2 times the chain length each sphere stands for; total rho V.
+        Eigen::VectorXd share = Eigen::VectorXd::Zero(a.radii.size());
+        for (const auto& [i, j] : a.chain_links) {
+          const double half = 0.5 * (a.centres.row(i) - a.centres.row(j)).norm();
+          share[i] += half;
+          share[j] += half;
+        }
+        if (share.sum() == 0) share.setOnes();
+        add_nodes(a.centres, a.radii, share.cwiseProduct(a.radii.cwiseAbs2()));
+        auto rod = [&](Index i, Index j) {
+          const double r = 0.5 * (a.radii[i] + a.radii[j]);
+          const double l = (a.centres.row(i) - a.centres.row(j)).norm();
+          spheres.add_link(part.first_node + i, part.first_node + j,
+                           rod_link(mat, M_PI * r * r, l));
+        };
+        for (const auto& [i, j] : a.chain_links) rod(i, j);
+        for (const auto& [i, j] : a.bending_links) rod(i, j);
+        break;
+      }
+      case Topology::grid: {
+        const auto& g = out.grid;
+        const Eigen::VectorXd r = Eigen::VectorXd::Constant(g.centres.rows(), 0.5 * g.spacing);
+        add_nodes(g.centres, r, Eigen::VectorXd::Ones(g.centres.rows()));
+        for (std::size_t l = 0; l < g.links.size(); ++l) {
+          const auto [i, j] = g.links[l];
+          const double len = (g.centres.row(i) - g.centres.row(j)).norm();
+          const double f = grid_factor(spec.grid.neighbours, g.link_kind[l]);
+          // k = f E s and k_d = f eta s, written as a rod of area f s len.
+          spheres.add_link(part.first_node + i, part.first_node + j,
+                           rod_link(mat, f * g.spacing * len, len));
+        }
+        break;
+      }
+      case Topology::packing: {
+        const auto& k = out.packing;
+        add_nodes(k.centres, k.radii, k.radii.array().cube().matrix());
+        for (const auto& [i, j] : k.links) {
+          const double r = std::min(k.radii[i], k.radii[j]);
+          const double l = (k.centres.row(i) - k.centres.row(j)).norm();
+          spheres.add_link(part.first_node + i, part.first_node + j,
+                           rod_link(mat, M_PI * r * r, l));
+        }
+        break;
+      }
+    }
+    part.num_nodes = spheres.num_nodes() - part.first_node;
+    part.num_links = spheres.num_links() - part.first_link;
+    part.num_tetrahedra = Index(tetrahedra.size()) - part.first_tetrahedron;
+    out.report.spheres = part.num_nodes;
+    out.report.links = part.num_links;
+    out.report.mass = spheres.masses().segment(part.first_node, part.num_nodes).sum();
+    b.model.parts.push_back(part);
+    out.report.seconds += since(t0);
+  }
+  b.model.tetrahedra.resize(Index(tetrahedra.size()), 4);
+  for (std::size_t t = 0; t < tetrahedra.size(); ++t)
+    b.model.tetrahedra.row(Index(t)) = tetrahedra[t];
+}
+
+// Stage 3: attachments. Each sphere of one part within the tolerance of the other part's spheres
+// is linked to its nearest one there (both ways; no pair twice). Rod rule with the softer
+// material and the smaller sphere's cross-section, times the scene's stiffness_scale.
+void attach_parts(Build& b) {
+  SphereModel<double>& spheres = b.model.spheres;
+  b.model.first_attachment_link = spheres.num_links();
+  b.joined.assign(b.scene.parts.size(), {});
+  for (const AttachmentSpec& att : b.scene.attachments) {
+    const std::size_t pa = b.part_index.at(att.a), pb = b.part_index.at(att.b);
+    const Part &A = b.model.parts[pa], &B = b.model.parts[pb];
+    const auto x = spheres.rest_positions();
+    const auto r = spheres.radii();
+    const Material<double>& soft =
+        b.scene.parts[pa].material.youngs_modulus <= b.scene.parts[pb].material.youngs_modulus
+            ? b.scene.parts[pa].material
+            : b.scene.parts[pb].material;
+    std::map<std::pair<Index, Index>, bool> done;
+    double closest = std::numeric_limits<double>::infinity();
+    Index added = 0;
+    auto link_from = [&](const Part& P, const Part& Q) {
+      for (Index i = P.first_node; i < P.first_node + P.num_nodes; ++i) {
+        Index best = -1;
+        double best_gap = std::numeric_limits<double>::infinity();
+        for (Index j = Q.first_node; j < Q.first_node + Q.num_nodes; ++j) {
+          const double gap = (x.row(i) - x.row(j)).norm() - r[i] - r[j];
+          if (gap < best_gap) {
+            best_gap = gap;
+            best = j;
+          }
+        }
+        closest = std::min(closest, best_gap);
+        if (best < 0 || best_gap > att.tolerance) continue;
+        const auto key = std::minmax(i, best);
+        const double len = (x.row(i) - x.row(best)).norm();
+        if (done[key] || len < 1e-9) continue;  // coincident centres cannot carry a rest length
+        done[key] = true;
+        const double rr = std::min(r[i], r[best]);
+        // A bar no shorter than the smaller radius: nearly coincident spheres would otherwise get
+        // arbitrarily stiff links (k = E A / l), which set the highest eigenfrequency.
+        VoigtLink<double> law = rod_link(soft, M_PI * rr * rr, std::max(len, rr));
+        law.rest_length = len;
+        law.stiffness *= att.stiffness_scale;
+        law.damping *= att.stiffness_scale;
+        law.large_stiffness *= att.stiffness_scale;
+        spheres.add_link(key.first, key.second, law);
+        ++added;
+      }
+    };
+    link_from(A, B);
+    link_from(B, A);
+    if (added == 0) {
+      char buf[200];
+      std::snprintf(buf, sizeof buf,
+                    "no spheres within the tolerance of %.3g mm; the closest sphere surfaces are "
+                    "%.3g mm apart",
+                    att.tolerance * 1e3, closest * 1e3);
+      throw Error(b.scene.file, "attachment '" + att.a + "'-'" + att.b + "'", buf);
+    }
+    b.joined[pa].push_back(pb);
+    b.joined[pb].push_back(pa);
+  }
+  b.model.num_attachment_links = spheres.num_links() - b.model.first_attachment_link;
+}
+
+// Stage 4: fixed regions, then the check that every group of attached parts is anchored.
+void fix_parts(Build& b) {
+  const std::size_t np = b.scene.parts.size();
+  SphereModel<double>& spheres = b.model.spheres;
+  std::vector<bool> anchored(np, false);
+  for (std::size_t k = 0; k < b.scene.fixed.size(); ++k) {
+    const FixedSpec& f = b.scene.fixed[k];
+    const std::size_t p = b.part_index.at(f.part);
+    const Part& P = b.model.parts[p];
+    const std::string where = "fixed region " + std::to_string(k) + " (part '" + f.part + "')";
+    std::vector<Index> chosen;
+    const auto x = spheres.rest_positions();
+    switch (f.kind) {
+      case FixedSpec::Kind::box:
+        for (Index i = P.first_node; i < P.first_node + P.num_nodes; ++i) {
+          const Eigen::Vector3d q = x.row(i).transpose();
+          if ((q.array() >= f.min.array()).all() && (q.array() <= f.max.array()).all())
+            chosen.push_back(i);
+        }
+        break;
+      case FixedSpec::Kind::plane:
+        for (Index i = P.first_node; i < P.first_node + P.num_nodes; ++i)
+          if ((x.row(i).transpose() - f.point).dot(f.normal) <= 0) chosen.push_back(i);
+        break;
+      case FixedSpec::Kind::vertices:
+        for (Index v : f.vertices) {
+          if (v >= P.num_nodes)
+            throw Error(b.scene.file, where,
+                        "vertex " + std::to_string(v) + " is out of range; the part has " +
+                            std::to_string(P.num_nodes) + " spheres");
+          chosen.push_back(P.first_node + v);
+        }
+        break;
+      case FixedSpec::Kind::chain_end: {
+        if (P.topology != Topology::axis)
+          throw Error(b.scene.file, where, "'chain_end' applies to axis parts only");
+        const auto& br = b.outcomes[p].axis.branches;
+        chosen.push_back(P.first_node + (f.last ? br.back().back() : br.front().front()));
+        break;
+      }
+    }
+    if (chosen.empty()) throw Error(b.scene.file, where, "selects no sphere");
+    for (Index i : chosen) spheres.set_fixed(i);
+    anchored[p] = true;
+  }
+  std::vector<int> group(np, -1);
+  for (std::size_t s = 0; s < np; ++s) {
+    if (group[s] >= 0) continue;
+    std::vector<std::size_t> stack{s}, members;
+    group[s] = int(s);
+    bool fixed = false;
+    while (!stack.empty()) {
+      const std::size_t q = stack.back();
+      stack.pop_back();
+      members.push_back(q);
+      fixed = fixed || anchored[q];
+      for (std::size_t w : b.joined[q])
+        if (group[w] < 0) {
+          group[w] = int(s);
+          stack.push_back(w);
+        }
+    }
+    if (!fixed) {
+      std::vector<std::string> names;
+      for (std::size_t q : members) names.push_back("'" + b.scene.parts[q].name + "'");
+      throw Error(b.scene.file, "part " + names.front(),
+                  names.size() == 1 ? "is neither fixed nor attached to a fixed part"
+                                    : "is attached only to parts that are not fixed either (" +
+                                          join(names, ", ") + "): fix one of them");
+    }
+  }
+}
+
+// Stage 5: the render surfaces, every input mesh of every part, bound to that part's spheres.
+// Axis parts bind to their chains; tetrahedral parts barycentrically to their filling; the
+// baselines barycentrically to a Delaunay tetrahedralisation of their sphere centres, or, with
+// fewer than four non-coplanar spheres, each vertex to its nearest sphere by a rest offset
+// (one-sphere chains: translation only).
+void bind_render_surfaces(Build& b) {
+  const SphereModel<double>& spheres = b.model.spheres;
+  Skin<double>& skin = b.model.skin;
+  Index nv = 0, nf = 0;
+  for (const auto& out : b.outcomes)
+    for (const auto& m : out.render) {
+      nv += m.num_vertices();
+      nf += m.num_faces();
+    }
+  skin.rest.vertices.resize(nv, 3);
+  skin.rest.faces.resize(nf, 3);
+  skin.kind.resize(nv);
+  skin.nodes.setConstant(nv, 4, -1);
+  skin.weights.setZero(nv, 4);
+  skin.offsets.setZero(nv, 3);
+  std::vector<Eigen::Matrix<Index, 1, 3>> chain_rows;
+  std::vector<Eigen::RowVector3d> tangent_rows;
+  Index v0 = 0, f0 = 0;
+  for (std::size_t p = 0; p < b.outcomes.size(); ++p) {
+    PartOutcome& out = b.outcomes[p];
+    Part& part = b.model.parts[p];
+    b.report_progress(part.name, "binding the render surface", 0.9);
+    Positions<double> pts(0, 3);
+    FaceArray faces(0, 3);
+    for (const auto& m : out.render) {
+      const Index base = Index(pts.rows());
+      pts.conservativeResize(base + m.num_vertices(), 3);
+      pts.bottomRows(m.num_vertices()) = m.vertices;
+      faces.conservativeResize(faces.rows() + m.num_faces(), 3);
+      faces.bottomRows(m.num_faces()) = m.faces.array() + base;
+    }
+    const Index n = Index(pts.rows());
+    skin.rest.vertices.middleRows(v0, n) = pts;
+    skin.rest.faces.middleRows(f0, faces.rows()) = faces.array() + v0;
+    const auto sphere_pos = spheres.rest_positions().middleRows(part.first_node, part.num_nodes);
+    std::vector<std::vector<Index>> branches;
+    TetrahedralMesh<double> local;
+    if (part.topology == Topology::axis) {
+      branches = out.axis.branches;
+    } else if (part.topology == Topology::tetrahedral) {
+      local = out.tetra.mesh;
+    } else {
+      try {
+        local = tetrahedralise(Positions<double>(sphere_pos));
+      } catch (const Error&) {
+        for (Index k = 0; k < part.num_nodes; ++k) branches.push_back({k});
+      }
+    }
+    if (!branches.empty()) {
+      const detail::ChainBinding cb =
+          detail::bind_chain(Positions<double>(sphere_pos), branches, part.first_node, pts);
+      const Index base = Index(chain_rows.size());
+      for (Index k = 0; k < cb.chain_nodes.rows(); ++k) {
+        chain_rows.push_back(cb.chain_nodes.row(k));
+        tangent_rows.push_back(cb.tangents.row(k));
+      }
+      for (Index v = 0; v < n; ++v) {
+        skin.kind[v0 + v] = std::uint8_t(SkinKind::chain);
+        skin.nodes(v0 + v, 0) = base + cb.entries(v, 0);
+        skin.nodes(v0 + v, 1) = base + cb.entries(v, 1);
+        skin.weights(v0 + v, 0) = 1 - cb.s[v];
+        skin.weights(v0 + v, 1) = cb.s[v];
+        skin.offsets.row(v0 + v) = cb.offsets.row(v);
+      }
+    } else {
+      skin.kind.segment(v0, n).setConstant(std::uint8_t(SkinKind::barycentric));
+      detail::bind_barycentric(local, part.first_node, pts, skin.nodes.middleRows(v0, n),
+                               skin.weights.middleRows(v0, n));
+    }
+    part.surface = Index(skin.surfaces.size());
+    skin.surfaces.push_back({part.name, v0, n, f0, Index(faces.rows())});
+    out.report.surface_vertices = n;
+    out.report.surface_faces = Index(faces.rows());
+    v0 += n;
+    f0 += Index(faces.rows());
+  }
+  skin.chain_nodes.resize(Index(chain_rows.size()), 3);
+  skin.chain_rest_tangents.resize(Index(chain_rows.size()), 3);
+  for (std::size_t k = 0; k < chain_rows.size(); ++k) {
+    skin.chain_nodes.row(Index(k)) = chain_rows[k];
+    skin.chain_rest_tangents.row(Index(k)) = tangent_rows[k];
+  }
+}
+
+// Stage 6: the report.
+BuildReport make_report(const Build& b, double seconds) {
+  BuildReport report;
+  report.scene = b.scene.name;
+  for (const auto& out : b.outcomes) report.parts.push_back(out.report);
+  report.spheres = b.model.spheres.num_nodes();
+  report.links = b.model.spheres.num_links();
+  report.attachment_links = b.model.num_attachment_links;
+  report.fixed_nodes = b.model.spheres.num_fixed();
+  report.seconds = seconds;
+  return report;
+}
+
+}  // namespace
+
+TissueModel<double> HybridTopologyBuilder::build() {
+  const auto t_start = Clock::now();
+  Build b{m_scene, m_progress, {}, {}, {}, {}};
+  b.model.name = m_scene.name;
+  fill_parts(b);
+  place_parts(b);
+  attach_parts(b);
+  fix_parts(b);
+  bind_render_surfaces(b);
+  BuildReport report = make_report(b, since(t_start));
+  b.model.report_json = report.json();
+  b.model.validate();
+  m_report = std::move(report);
+  b.report_progress("", "done", 1.0);
+  return std::move(b.model);
+}
+
+std::string BuildReport::table() const {
+  std::ostringstream o;
+  char line[256];
+  std::snprintf(line, sizeof line, "%-16s %-12s %8s %8s %7s %7s %9s %9s %8s\n", "part", "topology",
+                "r (cm)", "spheres", "links", "tets", "Q in 1-3", "min dih.", "time (s)");
+  o << line;
+  for (const auto& p : parts) {
+    const bool tet = p.topology == Topology::tetrahedral;
+    char q[16] = "-", d[16] = "-", t[16] = "-";
+    if (tet) {
+      std::snprintf(q, sizeof q, "%.1f %%", 100 * p.quality.fraction_q_1_3);
+      std::snprintf(d, sizeof d, "%.1f deg", p.quality.min_dihedral_deg);
+      std::snprintf(t, sizeof t, "%d", p.quality.tetrahedra);
+    }
+    std::snprintf(line, sizeof line, "%-16s %-12s %8.3f %8d %7d %7s %9s %9s %8.2f\n",
+                  p.name.c_str(), to_string(p.topology), p.radius * 100, p.spheres, p.links, t, q,
+                  d, p.seconds);
+    o << line;
+  }
+  std::snprintf(line, sizeof line,
+                "total: %d spheres, %d links (%d attachment), %d fixed; built in %.2f s\n", spheres,
+                links, attachment_links, fixed_nodes, seconds);
+  o << line;
+  return o.str();
+}
+
+std::string BuildReport::json() const {
+  nlohmann::json j;
+  j["scene"] = scene;
+  j["spheres"] = spheres;
+  j["links"] = links;
+  j["attachment_links"] = attachment_links;
+  j["fixed_spheres"] = fixed_nodes;
+  j["seconds"] = seconds;
+  for (const auto& p : parts) {
+    nlohmann::json q;
+    q["name"] = p.name;
+    q["topology"] = to_string(p.topology);
+    q["radius_m"] = p.radius;
+    q["spheres"] = p.spheres;
+    q["links"] = p.links;
+    q["volume_m3"] = p.volume;
+    q["mass_kg"] = p.mass;
+    q["seconds"] = p.seconds;
+    q["surface_vertices"] = p.surface_vertices;
+    q["surface_faces"] = p.surface_faces;
+    if (p.topology == Topology::tetrahedral) {
+      q["tetrahedra"] = p.quality.tetrahedra;
+      q["quality"] = {{"q_min", p.quality.q_min},
+                      {"q_mean", p.quality.q_mean},
+                      {"q_max", p.quality.q_max},
+                      {"fraction_q_1_3", p.quality.fraction_q_1_3},
+                      {"histogram", p.quality.histogram},
+                      {"histogram_bins", {"1-1.5", "1.5-2", "2-3", "3-5", "5-10", "10+"}},
+                      {"min_dihedral_deg", p.quality.min_dihedral_deg},
+                      {"mean_edge_m", p.quality.mean_edge}};
+      q["metric"] = p.metric;
+      q["optimiser"] = p.optimiser;
+    }
+    for (const auto& m : p.meshes) {
+      q["meshes"].push_back({{"file", m.file},
+                             {"vertices", m.vertices},
+                             {"faces", m.faces},
+                             {"components", m.components},
+                             {"boundary_edges", m.boundary_edges},
+                             {"non_manifold_edges", m.non_manifold_edges},
+                             {"non_manifold_vertices", m.non_manifold_vertices},
+                             {"degenerate_faces", m.degenerate_faces},
+                             {"self_intersections", m.self_intersections},
+                             {"outward_oriented", m.outward_oriented},
+                             {"volume_m3", m.volume},
+                             {"defects", m.defects()},
+                             {"repairs", m.repairs}});
+    }
+    j["parts"].push_back(q);
+  }
+  return j.dump(2);
+}
+
+TissueModel<double> build_model(const std::string& scene_path, BuildReport* report) {
+  HybridTopologyBuilder builder(load_scene(scene_path));
+  TissueModel<double> model = builder.build();
+  if (report) *report = builder.report();
+  return model;
+}
+
+}  // namespace fsm::build
