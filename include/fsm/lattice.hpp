@@ -5,6 +5,9 @@
 /// way to fill a simple shape without the CGAL builder.
 
 #include <array>
+#include <cmath>
+#include <limits>
+#include <string>
 #include <vector>
 
 #include "fsm/tetrahedral_mesh.hpp"
@@ -27,6 +30,15 @@ TetrahedralMesh<Scalar> make_cube_lattice(const Vector3<Scalar>& origin,
   if ((cells.array() < 1).any()) throw Error("", "lattice", "needs at least one cell per axis");
   if (!(spacing > 0) || !std::isfinite(spacing))
     throw Error("", "lattice", "spacing must be positive and finite");
+  // Counted in 64 bits: the vertex ids and the 6 tetrahedra per cell must fit an Index.
+  const double vertices = (double(cells[0]) + 1) * (double(cells[1]) + 1) * (double(cells[2]) + 1);
+  const double tetrahedra = 6.0 * double(cells[0]) * double(cells[1]) * double(cells[2]);
+  if (vertices > double(std::numeric_limits<Index>::max()) ||
+      4 * tetrahedra > double(std::numeric_limits<Index>::max()))
+    throw Error("", "lattice",
+                std::to_string(cells[0]) + " x " + std::to_string(cells[1]) + " x " +
+                    std::to_string(cells[2]) + " cells: more vertices or tetrahedra than an "
+                    "Index (2^31 - 1) can count");
   const Index nx = cells[0] + 1, ny = cells[1] + 1, nz = cells[2] + 1;
   auto vid = [&](Index i, Index j, Index k) { return i + nx * (j + ny * k); };
   // The six permutations of the axes; consecutive corners differ by one unit step.

@@ -5,6 +5,7 @@
 /// render surface — as built offline and loaded by the runtime.
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -94,6 +95,9 @@ struct TissueModel {
     for (const Part& p : parts) {
       const std::string what = "part '" + p.name + "'";
       if (p.region < 0 || p.region >= spheres.num_regions()) throw Error("", what, "bad region");
+      if (!(p.radius > 0) || !std::isfinite(p.radius))
+        throw Error("", what,
+                    "nominal radius " + std::to_string(p.radius) + " m must be positive and finite");
       if (!inside(p.first_node, p.num_nodes, spheres.num_nodes()))
         throw Error("", what, "node range outside the model");
       if (!inside(p.first_link, p.num_links, spheres.num_links()))

@@ -22,11 +22,39 @@ using Scalar = double;
 
 /// A numpy array over memory owned by `owner` (no copy). The array keeps `owner` alive.
 /// Views are invalidated when the owner's arrays grow (adding nodes or links), like iterators.
+/// A `read_only` view refuses writes (numpy raises ValueError): structure the C++ side indexes
+/// with (links, regions, flags) is changed through checked setters only.
 template <typename T>
-py::array_t<T> view(T* data, py::ssize_t rows, py::ssize_t cols, py::handle owner) {
-  if (cols == 0) return py::array_t<T>({rows}, {py::ssize_t(sizeof(T))}, data, owner);
-  return py::array_t<T>({rows, cols}, {py::ssize_t(sizeof(T)) * cols, py::ssize_t(sizeof(T))}, data,
-                        owner);
+py::array_t<T> view(T* data, py::ssize_t rows, py::ssize_t cols, py::handle owner,
+                    bool read_only = false) {
+  py::array_t<T> a =
+      cols == 0
+          ? py::array_t<T>({rows}, {py::ssize_t(sizeof(T))}, data, owner)
+          : py::array_t<T>({rows, cols}, {py::ssize_t(sizeof(T)) * cols, py::ssize_t(sizeof(T))},
+                           data, owner);
+  if (read_only) a.attr("setflags")(py::arg("write") = false);
+  return a;
+}
+
+/// Raises fsm.Error naming `what` unless `x` is a finite number >= 0 (infinity allowed when
+/// `allow_infinity`).
+inline void require_non_negative(Scalar x, const char* what, bool allow_infinity = false) {
+  if (!(x >= 0) || (!allow_infinity && !std::isfinite(x)))
+    throw Error("", what,
+                "is " + std::to_string(x) + "; it must be " +
+                    (allow_infinity ? "non-negative (infinity allowed)" : "finite and non-negative"));
+}
+
+/// Raises fsm.Error naming `what` unless `d` is a finite, non-zero direction.
+inline void require_direction(const Vector3<Scalar>& d, const char* what) {
+  if (!d.allFinite() || !(d.squaredNorm() > 0))
+    throw Error("", what, "must be a finite, non-zero direction");
+}
+
+/// Raises fsm.Error naming `what` unless every entry of `a` is finite.
+template <typename Derived>
+void require_finite(const Eigen::DenseBase<Derived>& a, const char* what) {
+  if (!a.allFinite()) throw Error("", what, "is not finite (NaN or infinite entries)");
 }
 
 /// Copies a (rows x 3) numpy array into an Eigen map after checking its shape; fsm::Error names

@@ -59,8 +59,10 @@ linear_velocity (m/s), buttons (bit mask).)")
 
 Subclass it in Python to script a device for OFFLINE experiments (ServoLoop.run_fast): implement
 name(), read(time) -> DeviceState and optionally limits(), apply_force(force), start(), stop().
-A Python device takes the GIL on every call: never use one in a real-time loop. Exceptions in
-read() or apply_force() are caught (the loop must not throw) and kept in last_error.
+A Python device takes the GIL on every call: never use one in a real-time loop. An exception
+raised by read(), apply_force() or stop() inside ServoLoop.run_fast cannot unwind through the
+C++ loop: the loop goes on with the device at rest and no force, and run_fast raises the first
+such exception when it returns (with a note saying where it came from).
 
     class Circle(fsm.HapticDevice):
         def name(self): return "circle"

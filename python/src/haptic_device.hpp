@@ -23,20 +23,23 @@ class PyHapticDevice : public fh::HapticDevice {
   }
   void start() override { PYBIND11_OVERRIDE(void, fh::HapticDevice, start); }
   void stop() noexcept override {
+    py::gil_scoped_acquire gil;
     try {
-      py::gil_scoped_acquire gil;
       py::function f = py::get_override(static_cast<const fh::HapticDevice*>(this), "stop");
       if (f) f();
-    } catch (...) {
+    } catch (py::error_already_set& e) {
+      keep(e, "stop");
     }
   }
   fh::DeviceState read(double time) noexcept override {
+    py::gil_scoped_acquire gil;
     try {
-      py::gil_scoped_acquire gil;
       py::function f = py::get_override(static_cast<const fh::HapticDevice*>(this), "read");
       if (f) return f(time).cast<fh::DeviceState>();
-    } catch (const std::exception& e) {
-      last_error = e.what();
+    } catch (py::error_already_set& e) {
+      keep(e, "read");
+    } catch (const std::exception& e) {  // a cast error: read() returned something else
+      keep_message(std::string("read() must return a DeviceState: ") + e.what());
     }
     fh::DeviceState s;
     s.time = time;
@@ -44,18 +47,43 @@ class PyHapticDevice : public fh::HapticDevice {
   }
   V3 apply_force(const V3& force) noexcept override {
     const V3 f = clamp_force(force, safe_limit());
+    py::gil_scoped_acquire gil;
     try {
-      py::gil_scoped_acquire gil;
       py::function fn = py::get_override(static_cast<const fh::HapticDevice*>(this), "apply_force");
       if (fn) fn(f);
-    } catch (const std::exception& e) {
-      last_error = e.what();
+    } catch (py::error_already_set& e) {
+      keep(e, "apply_force");
     }
     return f;
   }
-  std::string last_error;
+
+  /// Raises, with the GIL held, the first exception a method of this device raised inside a loop
+  /// (a Python exception cannot unwind through the C++ loop: the loop went on with the device at
+  /// rest, and the exception comes back here, with a note saying so).
+  void raise_pending(const char* loop) {
+    if (!m_pending) return;
+    py::object value = std::move(m_pending);
+    m_pending = py::object();
+    if (py::hasattr(value, "add_note"))
+      value.attr("add_note")("raised by HapticDevice." + m_pending_method + "() inside " + loop +
+                             "; the loop went on with the device at rest and no force");
+    PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(value.ptr())), value.ptr());
+    throw py::error_already_set();
+  }
 
  private:
+  // Keeps the first exception (GIL held).
+  void keep(py::error_already_set& e, const char* method) {
+    if (m_pending) return;
+    m_pending = e.value();
+    m_pending_method = method;
+  }
+  void keep_message(const std::string& message) {
+    if (m_pending) return;
+    m_pending = py::reinterpret_steal<py::object>(
+        PyObject_CallFunction(PyExc_TypeError, "s", message.c_str()));
+    m_pending_method = "read";
+  }
   double safe_limit() noexcept {
     try {
       return limits().max_force;
@@ -63,6 +91,9 @@ class PyHapticDevice : public fh::HapticDevice {
       return 0;
     }
   }
+
+  py::object m_pending;
+  std::string m_pending_method;
 };
 
 }  // namespace fsm::python

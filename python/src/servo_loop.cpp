@@ -74,6 +74,8 @@ Real-time running (run_real_time) is for C++ devices only; with a Python device 
               py::gil_scoped_release release;
               l.run_fast(seconds);
             }
+            if (auto* d = dynamic_cast<PyHapticDevice*>(&l.device()))
+              d->raise_pending("ServoLoop.run_fast");
           },
           py::arg("seconds"), py::arg("device") = py::none(),
           "Runs `seconds` of servo time offline (pass the device again to release the GIL for C++ "
@@ -81,8 +83,12 @@ Real-time running (run_real_time) is for C++ devices only; with a Python device 
       .def(
           "run_real_time",
           [](fh::ServoLoop& l, double seconds) {
-            py::gil_scoped_release release;
-            l.run_real_time(seconds);
+            {
+              py::gil_scoped_release release;
+              l.run_real_time(seconds);
+            }
+            if (auto* d = dynamic_cast<PyHapticDevice*>(&l.device()))
+              d->raise_pending("ServoLoop.run_real_time");
           },
           py::arg("seconds"), "Runs in real time (C++ devices only; the GIL is released).")
       .def("stats", &fh::ServoLoop::stats, "ServoStats of the last run.")

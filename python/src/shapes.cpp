@@ -174,6 +174,8 @@ gives (w, x, y, z) and pose.rotation the 3 x 3 matrix (copies; assign to change)
       "shape_contact",
       [](const Shape& shape, const Pose& pose, const Vector3<Scalar>& centre,
          Scalar radius) -> py::object {
+        require_finite(centre, "centre");
+        require_non_negative(radius, "radius");
         const auto c = fc::contact(shape, pose, centre, radius);
         if (!c) return py::none();
         py::dict d;

@@ -84,6 +84,9 @@ reported, never left as NaN. Raises fsm.Error for a bad model or option.)")
       .def(
           "run",
           [](Sim& sim, int steps, Scalar dt) {
+            if (steps < 0) throw Error("", "steps", "is " + std::to_string(steps) + ", not >= 0");
+            if (!(dt > 0) || !std::isfinite(dt))
+              throw Error("", "dt", "is " + std::to_string(dt) + " s; it must be positive and finite");
             int advanced = 0;
             {
               py::gil_scoped_release release;
@@ -92,7 +95,9 @@ reported, never left as NaN. Raises fsm.Error for a bad model or option.)")
             return advanced;
           },
           py::arg("steps"), py::arg("dt"),
-          "Takes `steps` steps of dt seconds without the GIL; returns how many advanced.")
+          "Takes `steps` steps of dt seconds without the GIL; returns how many advanced. "
+          "fsm.Error for a negative count or a dt that is not positive and finite (step(dt) "
+          "reports those as a status instead, as the C++ step does).")
       .def_property_readonly(
           "model", [](Sim& sim) -> SphereModel<Scalar>& { return sim.model(); },
           py::return_value_policy::reference_internal, "The simulated model (arrays are views).")

@@ -1,5 +1,8 @@
 // SphereModel: structure-of-arrays data, seen from numpy as views (no copies).
 
+#include <cstddef>
+#include <type_traits>
+
 #include "common.hpp"
 
 namespace fsm::python {
@@ -24,22 +27,29 @@ void rows3_property(py::class_<Model>& c, const char* name, Get get, const char*
       doc);
 }
 
-template <typename T, typename Get>
-void column_property(py::class_<Model>& c, const char* name, Get get, const char* doc) {
+// A property viewing a |V| or |L| column: writable values, or (`check` given) a read-only view of
+// structure whose setter validates every entry first (`check(model, value, index)` throws).
+template <typename T, typename Get, typename Check = std::nullptr_t>
+void column_property(py::class_<Model>& c, const char* name, Get get, const char* doc,
+                     Check check = nullptr) {
+  constexpr bool structural = !std::is_same_v<Check, std::nullptr_t>;
   c.def_property(
       name,
       [get](py::object self) {
         Model& m = self.cast<Model&>();
         auto a = get(m);
-        return view<T>(a.data(), py::ssize_t(a.rows()), 0, self);
+        return view<T>(a.data(), py::ssize_t(a.rows()), 0, self, structural);
       },
-      [get, name](Model& m, const py::array_t<T, py::array::c_style | py::array::forcecast>& v) {
+      [get, name, check](Model& m,
+                         const py::array_t<T, py::array::c_style | py::array::forcecast>& v) {
         auto a = get(m);
         if (v.ndim() != 1 || v.shape(0) != py::ssize_t(a.rows()))
           throw Error("", name,
                       "has " + std::to_string(v.ndim()) + " dimensions and " +
                           std::to_string(v.ndim() ? v.shape(0) : 0) +
                           " entries, wanted a vector of " + std::to_string(a.rows()));
+        if constexpr (structural)
+          for (Index i = 0; i < Index(a.rows()); ++i) check(m, v.data()[i], i);
         std::copy(v.data(), v.data() + a.rows(), a.data());
       },
       doc);
@@ -110,10 +120,24 @@ writing masses, fixed flags or link constants in place, call Simulation.refresh(
   column_property<Scalar>(
       c, "radii", [](Model& mm) { return mm.radii(); }, "|V|, m");
   column_property<Index>(
-      c, "node_regions", [](Model& mm) { return mm.node_regions(); }, "|V|");
+      c, "node_regions", [](Model& mm) { return mm.node_regions(); },
+      "|V| region indices (a read-only view; assigning a whole array checks every index)",
+      [](const Model& mm, Index r, Index i) {
+        if (r < 0 || r >= mm.num_regions())
+          throw Error("", "node_regions",
+                      "entry " + std::to_string(i) + " is " + std::to_string(r) +
+                          ", not a region in [0, " + std::to_string(mm.num_regions()) + ")");
+      });
   column_property<std::uint8_t>(
       c, "fixed", [](Model& mm) { return mm.fixed(); },
-      "|V|, 1 = fixed (use Simulation.set_fixed to keep velocities 0)");
+      "|V|, 1 = fixed (a read-only view: use set_fixed, or Simulation.set_fixed in a "
+      "simulation, which also zeroes the velocity)",
+      [](const Model&, std::uint8_t f, Index i) {
+        if (f > 1)
+          throw Error("", "fixed",
+                      "entry " + std::to_string(i) + " is " + std::to_string(int(f)) +
+                          "; a fixed flag is 0 or 1");
+      });
   column_property<Scalar>(
       c, "rest_lengths", [](Model& mm) { return mm.rest_lengths(); }, "|L|, m");
   column_property<Scalar>(
@@ -128,9 +152,9 @@ writing masses, fixed flags or link constants in place, call Simulation.refresh(
       "links",
       [](py::object self) {
         Model& mm = self.cast<Model&>();
-        return view<Index>(mm.links().data(), mm.num_links(), 2, self);
+        return view<Index>(mm.links().data(), mm.num_links(), 2, self, true);
       },
-      "|L| x 2 node indices (int32)");
+      "|L| x 2 node indices (int32), a read-only view (links change through add_link)");
 }
 
 }  // namespace fsm::python

@@ -21,6 +21,10 @@ void define_tissue_model(py::module_& m) {
       .def_readonly("first_link", &Part::first_link, "index of its first link")
       .def_readonly("num_links", &Part::num_links, "how many links it has")
       .def_readonly("surface", &Part::surface, "index into Skin.surfaces, or -1")
+      .def_readonly("first_tetrahedron", &Part::first_tetrahedron,
+                    "its first row in TissueModel.tetrahedra (tetrahedral parts)")
+      .def_readonly("num_tetrahedra", &Part::num_tetrahedra,
+                    "how many tetrahedra it has (0 for other topologies)")
       .def_property_readonly(
           "nodes",
           [](const Part& p) { return py::slice(p.first_node, p.first_node + p.num_nodes, 1); },
@@ -52,9 +56,10 @@ deformed vertices for sphere positions (|V| x 3).)")
           "faces",
           [](py::object self) {
             S& s = self.cast<S&>();
-            return view<Index>(s.rest.faces.data(), py::ssize_t(s.rest.faces.rows()), 3, self);
+            return view<Index>(s.rest.faces.data(), py::ssize_t(s.rest.faces.rows()), 3, self,
+                               true);
           },
-          "faces |F| x 3 (int32), a view")
+          "faces |F| x 3 (int32), a read-only view")
       .def_readonly("surfaces", &S::surfaces, "the SkinSurfaces, one per part with a surface")
       .def_property_readonly("num_vertices", &S::num_vertices, "|S|, render vertices in all")
       .def(
@@ -67,6 +72,7 @@ deformed vertices for sphere positions (|V| x 3).)")
               throw Error("", "positions", "has fewer rows than the skin's spheres");
             if (s.nodes.size() && s.nodes.maxCoeff() >= X.rows())
               throw Error("", "positions", "has fewer rows than the skin's spheres");
+            require_finite(X, "positions");
             Positions<Scalar> out(s.num_vertices(), 3);
             auto ws = s.make_workspace();
             {
@@ -97,6 +103,15 @@ the deformed render surface.)")
           "skin", [](T& t) -> S& { return t.skin; }, py::return_value_policy::reference_internal,
           "the Skin (by reference)")
       .def_readonly("report_json", &T::report_json, "the builder's report (JSON text)")
+      .def_property_readonly(
+          "tetrahedra",
+          [](py::object self) {
+            T& t = self.cast<T&>();
+            return view<Index>(t.tetrahedra.data(), py::ssize_t(t.tetrahedra.rows()), 4, self,
+                               true);
+          },
+          "|T| x 4 node indices (int32, a read-only view) of the tetrahedral parts' fillings; "
+          "part p's rows are [p.first_tetrahedron, p.first_tetrahedron + p.num_tetrahedra)")
       .def("part", &T::part, py::arg("name"), py::return_value_policy::reference_internal,
            "The Part of that name; fsm.Error if there is none.")
       .def("validate", &T::validate,

@@ -77,8 +77,13 @@ Raises fsm.Error naming a bad vertex or face. The tree keeps its own copy of the
                           "has shape " + shape_string(vertices) + ", wanted (" +
                               std::to_string(bvh.num_vertices()) + ", 3) as at build()");
             const Eigen::Map<const Positions<Scalar>> v(vertices.data(), vertices.shape(0), 3);
-            py::gil_scoped_release release;
-            bvh.refit(v);
+            require_finite(v, "vertices");
+            bool ok = false;
+            {
+              py::gil_scoped_release release;
+              ok = bvh.refit(v);
+            }
+            if (!ok) throw Error("", "vertices", "the tree could not be refitted to them");
           },
           py::arg("vertices"),
           "Moves the surface to new vertex positions (|V|, 3) in O(|F|); the topology is kept.")
@@ -86,6 +91,9 @@ Raises fsm.Error naming a bad vertex or face. The tree keeps its own copy of the
           "ray_cast",
           [](const Bvh& bvh, const Vector3<Scalar>& origin, const Vector3<Scalar>& direction,
              Scalar max_distance) -> std::optional<RayHit> {
+            require_finite(origin, "origin");
+            require_direction(direction, "direction");
+            require_non_negative(max_distance, "max_distance", true);
             return bvh.ray_cast(origin, direction, max_distance);
           },
           py::arg("origin"), py::arg("direction"),
@@ -97,6 +105,8 @@ Faces are two-sided and the test is watertight; ties go to the smallest face ind
       .def(
           "faces_near",
           [](const Bvh& bvh, const Vector3<Scalar>& centre, Scalar radius) {
+            require_finite(centre, "centre");
+            require_non_negative(radius, "radius");
             const Index n = bvh.faces_near(centre, radius, nullptr, 0);
             py::array_t<Index> out(n);
             if (n > 0) bvh.faces_near(centre, radius, out.mutable_data(), n);
@@ -118,6 +128,12 @@ centre (m).)")
       [](const Vector3<Scalar>& origin, const Vector3<Scalar>& direction, const Vector3<Scalar>& a,
          const Vector3<Scalar>& b, const Vector3<Scalar>& c,
          Scalar max_t) -> std::optional<RayHit> {
+        require_finite(origin, "origin");
+        require_direction(direction, "direction");
+        require_finite(a, "a");
+        require_finite(b, "b");
+        require_finite(c, "c");
+        require_non_negative(max_t, "max_t", true);
         return fc::intersect_ray_triangle(origin, direction, a, b, c, max_t);
       },
       py::arg("origin"), py::arg("direction"), py::arg("a"), py::arg("b"), py::arg("c"),

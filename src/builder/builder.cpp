@@ -3,9 +3,12 @@
 
 #include "fsm/builder/builder.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <numeric>
@@ -42,16 +45,152 @@ struct PartOutcome {
   PackingFilling packing;
 };
 
+// ---- The resource budget (docs/builder.md, "Resource budget") ---------------------------------
+//
+// Cost models, calibrated on this machine's builds (docs/builder.md gives the measurements): a
+// Mesh_3 filling at size h makes about V/h^3 + A/(2 h^2) vertices (interior plus surface), up to
+// 5 tetrahedra and 7 links per vertex, and peaks at about kTetraBytesPerSphere per vertex; an
+// alpha wrap makes about 4 A/alpha^2 faces at kWrapBytesPerFace each.
+constexpr double kTetraBytesPerSphere = 4e3;
+constexpr double kWrapBytesPerFace = 2e3;
+constexpr double kSphereBytes = 2e3;  // chains, grids, packings: nodes, links, search structures
+
+double surface_area(const TriangleMesh<double>& m) {
+  double a = 0;
+  for (Index f = 0; f < m.num_faces(); ++f) {
+    const Eigen::Vector3d p = m.vertices.row(m.faces(f, 0)).transpose();
+    const Eigen::Vector3d q = m.vertices.row(m.faces(f, 1)).transpose();
+    const Eigen::Vector3d r = m.vertices.row(m.faces(f, 2)).transpose();
+    a += 0.5 * (q - p).cross(r - p).norm();
+  }
+  return a;
+}
+
+std::string si(double value, const char* unit, double scale, int digits = 3) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*g %s", digits, value / scale, unit);
+  return buf;
+}
+
+// The vertex density sqrt(det M) (1/m^3) and the smallest size (m) of a metric over a box: exact
+// for a constant metric, else the mean and minimum over a 16^3 sample grid.
+std::pair<double, double> metric_density(const MetricField& metric, const Eigen::Vector3d& lo,
+                                         const Eigen::Vector3d& hi) {
+  auto density = [&](const Eigen::Vector3d& x) {
+    const double d = metric.metric(x).determinant();
+    return d > 0 ? std::sqrt(d) : 0.0;
+  };
+  if (metric.is_constant()) return {density(lo), metric.size(lo)};
+  constexpr int n = 16;
+  double sum = 0, smallest = std::numeric_limits<double>::infinity();
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j)
+      for (int k = 0; k < n; ++k) {
+        const Eigen::Vector3d t((i + 0.5) / n, (j + 0.5) / n, (k + 0.5) / n);
+        const Eigen::Vector3d x = lo + t.cwiseProduct(hi - lo);
+        sum += density(x);
+        smallest = std::min(smallest, metric.size(x));
+      }
+  return {sum / (n * n * n), smallest};
+}
+
+// What filling `surface` by `spec` will cost.
+WorkEstimate estimate_filling(const PartSpec& spec, const TriangleMesh<double>& surface) {
+  WorkEstimate e;
+  const double volume = std::abs(surface.volume());
+  const double area = surface_area(surface);
+  const Eigen::Vector3d lo = surface.vertices.colwise().minCoeff().transpose();
+  const Eigen::Vector3d hi = surface.vertices.colwise().maxCoeff().transpose();
+  const std::string shape = "volume " + si(volume, "cm^3", 1e-6) + ", area " +
+                            si(area, "cm^2", 1e-4);
+  switch (spec.topology) {
+    case Topology::tetrahedral: {
+      const auto metric = spec.metric ? spec.metric : isotropic_metric(spec.radius);
+      const auto [density, h] = metric_density(*metric, lo, hi);
+      e.spheres = volume * density + 0.5 * area / (h * h);
+      e.elements = 12 * e.spheres;  // 5 tetrahedra + 7 links per sphere
+      e.memory_bytes = kTetraBytesPerSphere * e.spheres;
+      e.basis = shape + (metric->is_constant() ? " at element size " : " at element sizes down to ") +
+                si(h, "mm", 1e-3) + (metric->is_constant() ? "" : " (sampled)");
+      break;
+    }
+    case Topology::axis: {
+      const double spacing = spec.axis.spacing > 0 ? spec.axis.spacing : spec.radius;
+      const double r = spec.axis.radius_min > 0 ? spec.axis.radius_min : 0.5 * spec.radius;
+      // A tube of radius r and length L has area 2 pi r L: the longest axis the surface allows.
+      e.spheres = area / (2 * M_PI * r) / spacing + 1;
+      e.elements = 2 * e.spheres;
+      e.memory_bytes = kSphereBytes * e.spheres + 4e3 * double(surface.num_faces());
+      e.basis = shape + ", spheres every " + si(spacing, "mm", 1e-3);
+      break;
+    }
+    case Topology::grid: {
+      const double s = spec.grid.spacing > 0 ? spec.grid.spacing : 2 * spec.radius;
+      const Eigen::Vector3d cells = (hi - lo) / s;
+      e.spheres = std::min(volume / (s * s * s), (cells.array() + 1).prod());
+      e.elements = e.spheres * spec.grid.neighbours / 2;
+      e.memory_bytes = kSphereBytes * e.spheres;
+      e.basis = shape + " at spacing " + si(s, "mm", 1e-3);
+      break;
+    }
+    case Topology::packing: {
+      const double r = spec.packing.radius_min > 0 ? spec.packing.radius_min : 0.5 * spec.radius;
+      e.spheres = volume / (r * r * r);
+      e.elements = 6 * e.spheres;
+      e.memory_bytes = kSphereBytes * e.spheres;
+      e.basis = shape + " down to radius " + si(r, "mm", 1e-3);
+      break;
+    }
+  }
+  return e;
+}
+
+// Refuses, naming the estimate and how to raise the limit, when `total` passes a limit.
+void check_budget(const WorkEstimate& part, const WorkEstimate& total, const BuildLimits& limits,
+                  const std::string& file, const std::string& part_name, const char* what) {
+  auto over = [&](double used, double limit, const char* quantity, const char* key,
+                  const char* flag) {
+    if (std::isfinite(used) && used <= limit) return;
+    char buf[512];
+    std::snprintf(buf, sizeof buf,
+                  "%s would need about %.3g %s (%s), and the build %.3g in all: more than the "
+                  "limit of %.3g; if this is meant, raise it with \"limits\": {\"%s\": N} in "
+                  "the scene or %s N",
+                  what, std::strcmp(quantity, "bytes of memory") == 0 ? part.memory_bytes
+                        : std::strcmp(quantity, "spheres") == 0      ? part.spheres
+                                                                     : part.elements,
+                  quantity, part.basis.c_str(), used, limit, key, flag);
+    throw Error(file, part_name, buf);
+  };
+  over(total.spheres, limits.spheres, "spheres", "spheres", "--max-spheres");
+  over(total.elements, limits.elements, "elements", "elements", "--max-elements");
+  over(total.memory_bytes, limits.memory_bytes, "bytes of memory", "memory_gb",
+       "--max-memory-gb (GB)");
+}
+
 // Reads the part's meshes, reports their defects, applies the requested repairs and returns the
-// closed surface to fill; fsm::Error naming file, part and defect otherwise.
-TriangleMesh<double> prepare_surface(const PartSpec& spec, PartOutcome& out) {
-  const std::string where = "part '" + spec.name + "'";
+// closed surface to fill; fsm::Error naming file, part and defect otherwise. An alpha wrap is
+// estimated against the budget before it runs.
+TriangleMesh<double> prepare_surface(const PartSpec& spec, PartOutcome& out,
+                                     const BuildLimits& limits, const WorkEstimate& so_far,
+                                     const std::string& scene_file) {
   for (const std::string& path : spec.meshes) {
     TriangleMesh<double> m = read_mesh(path, spec.mesh_scale);
     out.report.meshes.push_back(inspect_mesh(m, path));
     out.render.push_back(std::move(m));
   }
   if (spec.wrap) {
+    double area = 0;
+    for (const auto& m : out.render) area += surface_area(m);
+    WorkEstimate wrap;
+    wrap.elements = 4 * area / (spec.wrap->alpha * spec.wrap->alpha);
+    wrap.memory_bytes = kWrapBytesPerFace * wrap.elements;
+    wrap.basis = "input area " + si(area, "cm^2", 1e-4) + " at alpha " +
+                 si(spec.wrap->alpha, "mm", 1e-3);
+    WorkEstimate total = so_far;
+    total.elements += wrap.elements;
+    total.memory_bytes = std::max(total.memory_bytes, wrap.memory_bytes);
+    check_budget(wrap, total, limits, scene_file, spec.name, "the alpha wrap");
     TriangleMesh<double> wrapped = alpha_wrap(out.render, spec.wrap->alpha, spec.wrap->offset);
     MeshReport r = inspect_mesh(wrapped, "alpha wrap");
     char buf[160];
@@ -85,7 +224,6 @@ TriangleMesh<double> prepare_surface(const PartSpec& spec, PartOutcome& out) {
     throw Error(spec.meshes.front(), spec.name,
                 "the mesh does not bound a volume: " + join(r.defects(), ", ") + hint);
   }
-  (void)where;
   return surface;
 }
 
@@ -98,8 +236,15 @@ double grid_factor(int neighbours, std::uint8_t kind) {
 
 }  // namespace
 
-HybridTopologyBuilder::HybridTopologyBuilder(Scene scene) : m_scene(std::move(scene)) {
+HybridTopologyBuilder::HybridTopologyBuilder(Scene scene)
+    : m_scene(std::move(scene)), m_limits(m_scene.limits) {
   if (m_scene.parts.empty()) throw Error(m_scene.file, "scene", "has no parts");
+}
+
+void HybridTopologyBuilder::set_limits(const BuildLimits& limits) {
+  if (!(limits.spheres > 0) || !(limits.elements > 0) || !(limits.memory_bytes > 0))
+    throw Error(m_scene.file, "limits", "every limit must be positive");
+  m_limits = limits;
 }
 
 namespace {
@@ -112,6 +257,8 @@ struct Build {
   std::vector<PartOutcome> outcomes;
   std::map<std::string, std::size_t> part_index;
   std::vector<std::vector<std::size_t>> joined;  // per part: the parts attached to it
+  const BuildLimits& limits;
+  WorkEstimate total;  // estimated so far: spheres and elements add up, memory is the peak
 
   void report_progress(const std::string& part, const std::string& stage, double f) const {
     if (progress) progress(part, stage, f);
@@ -132,12 +279,29 @@ void fill_parts(Build& b) {
     out.report.radius = spec.radius;
     b.report_progress(spec.name, "reading meshes", double(p) / double(np));
     try {
-      out.surface = prepare_surface(spec, out);
+      out.surface = prepare_surface(spec, out, b.limits, b.total, b.scene.file);
     } catch (const Error& e) {
       if (e.part().empty()) throw Error(e.file(), spec.name, e.reason());
       throw;
     }
     out.report.volume = out.surface.volume();
+    // The budget, before any filling work.
+    out.report.estimate = estimate_filling(spec, out.surface);
+    b.total.spheres += out.report.estimate.spheres;
+    b.total.elements += out.report.estimate.elements;
+    b.total.memory_bytes = std::max(b.total.memory_bytes, out.report.estimate.memory_bytes);
+    check_budget(out.report.estimate, b.total, b.limits, b.scene.file, spec.name,
+                 (std::string("the ") + to_string(spec.topology) + " filling").c_str());
+    // A sphere larger than the part cannot fill it: the filling would be a few spheres at best.
+    const double equivalent = std::cbrt(std::abs(out.report.volume));
+    if (spec.radius > 0.5 * equivalent) {
+      char buf[256];
+      std::snprintf(buf, sizeof buf,
+                    "the sphere radius %.3g mm is larger than half the part's size (%.3g mm, the "
+                    "cube root of its volume): the filling will have very few spheres",
+                    spec.radius * 1e3, equivalent * 1e3);
+      out.report.warnings.push_back(buf);
+    }
     b.report_progress(spec.name, std::string("filling (") + to_string(spec.topology) + ")",
                       (double(p) + 0.3) / double(np));
     switch (spec.topology) {
@@ -514,7 +678,7 @@ BuildReport make_report(const Build& b, double seconds) {
 
 TissueModel<double> HybridTopologyBuilder::build() {
   const auto t_start = Clock::now();
-  Build b{m_scene, m_progress, {}, {}, {}, {}};
+  Build b{m_scene, m_progress, {}, {}, {}, {}, m_limits, {}};
   b.model.name = m_scene.name;
   fill_parts(b);
   place_parts(b);
@@ -552,7 +716,15 @@ std::string BuildReport::table() const {
                 "total: %d spheres, %d links (%d attachment), %d fixed; built in %.2f s\n", spheres,
                 links, attachment_links, fixed_nodes, seconds);
   o << line;
+  for (const std::string& w : warnings()) o << "warning: " << w << "\n";
   return o.str();
+}
+
+std::vector<std::string> BuildReport::warnings() const {
+  std::vector<std::string> all;
+  for (const auto& p : parts)
+    for (const std::string& w : p.warnings) all.push_back("part '" + p.name + "': " + w);
+  return all;
 }
 
 std::string BuildReport::json() const {
@@ -563,6 +735,7 @@ std::string BuildReport::json() const {
   j["attachment_links"] = attachment_links;
   j["fixed_spheres"] = fixed_nodes;
   j["seconds"] = seconds;
+  j["warnings"] = warnings();
   for (const auto& p : parts) {
     nlohmann::json q;
     q["name"] = p.name;
@@ -575,6 +748,11 @@ std::string BuildReport::json() const {
     q["seconds"] = p.seconds;
     q["surface_vertices"] = p.surface_vertices;
     q["surface_faces"] = p.surface_faces;
+    q["estimate"] = {{"spheres", p.estimate.spheres},
+                     {"elements", p.estimate.elements},
+                     {"memory_bytes", p.estimate.memory_bytes},
+                     {"basis", p.estimate.basis}};
+    q["warnings"] = p.warnings;
     if (p.topology == Topology::tetrahedral) {
       q["tetrahedra"] = p.quality.tetrahedra;
       q["quality"] = {{"q_min", p.quality.q_min},

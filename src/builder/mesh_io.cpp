@@ -23,6 +23,7 @@
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <numeric>
 #include <sstream>
@@ -400,35 +401,28 @@ TriangleMesh<double> read_mesh(const std::string& path, double scale) {
   if (!std::filesystem::exists(path, ec)) throw Error(path, "", "file not found");
   if (!std::filesystem::is_regular_file(path, ec)) throw Error(path, "", "not a regular file");
 
+  // Our own strict parser (mesh_parse.cpp), not CGAL's readers: CGAL allocates what a header
+  // declares before checking it against the file and cannot say which line is wrong.
+  std::string bytes;
+  {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw Error(path, "", "cannot open the file for reading");
+    std::ostringstream s;
+    s << in.rdbuf();
+    if (in.bad()) throw Error(path, "", "cannot read the file");
+    bytes = std::move(s).str();
+  }
+  PolygonSoup soup = parse_mesh(bytes, *mesh_format(path), path);
+  bytes = std::string();
+  if (soup.polygons.empty())
+    throw Error(path, "",
+                "no faces: the file is empty or holds only vertices (" +
+                    std::to_string(soup.points.size()) + " of them)");
   std::vector<Point> points;
-  std::vector<Polygon> polygons;
-  bool ok = false;
-  try {
-    ok = CGAL::IO::read_polygon_soup(path, points, polygons, CGAL::parameters::verbose(false));
-  } catch (const std::exception& e) {
-    throw Error(path, "", std::string("cannot read the mesh: ") + e.what());
-  }
-  if (polygons.empty())
-    throw Error(path, "",
-                "no faces could be read: the file is empty or not a valid ." +
-                    lower_extension(path) + " mesh");
-  if (!ok)
-    throw Error(path, "",
-                "cannot read the file as ." + lower_extension(path) + " (unreadable or malformed)");
-  for (std::size_t f = 0; f < polygons.size(); ++f) {
-    if (polygons[f].size() < 3)
-      throw Error(path, "", "face " + std::to_string(f) + " has fewer than 3 vertices");
-    for (const std::size_t v : polygons[f])
-      if (v >= points.size())
-        throw Error(path, "",
-                    "face " + std::to_string(f) + " refers to vertex " + std::to_string(v) +
-                        " of " + std::to_string(points.size()));
-  }
-  for (std::size_t v = 0; v < points.size(); ++v) {
-    const Point& p = points[v];
-    if (!(std::isfinite(p.x()) && std::isfinite(p.y()) && std::isfinite(p.z())))
-      throw Error(path, "", "vertex " + std::to_string(v) + " has a non-finite coordinate");
-  }
+  points.reserve(soup.points.size());
+  for (const auto& p : soup.points) points.emplace_back(p[0], p[1], p[2]);
+  std::vector<Polygon> polygons = std::move(soup.polygons);
+  soup = PolygonSoup();
 
   // Weld coincident points and drop points no face uses. Deliberately not the rest of
   // repair_polygon_soup (removing degenerate or duplicated faces, splitting pinched polygons):

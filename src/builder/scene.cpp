@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
@@ -46,6 +47,20 @@ class Reader {
   double number_or(const json& j, const char* key, double fallback,
                    const std::string& where) const {
     return j.contains(key) ? number_value(j.at(key), key, where) : fallback;
+  }
+
+  /// An integer in [lo, hi], read without wrapping (JSON integers can be 64-bit, signed or not).
+  long long integer(const json& v, const std::string& key, const std::string& where,
+                    long long lo, long long hi) const {
+    const std::string range = "[" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
+    if (!v.is_number_integer()) fail(where, "'" + key + "' must be an integer in " + range);
+    if (v.is_number_unsigned() && v.get<unsigned long long>() > static_cast<unsigned long long>(hi))
+      fail(where, "'" + key + "' is " + std::to_string(v.get<unsigned long long>()) +
+                      ", outside " + range);
+    const long long x = v.get<long long>();
+    if (x < lo || x > hi)
+      fail(where, "'" + key + "' is " + std::to_string(x) + ", outside " + range);
+    return x;
   }
 
   double number_value(const json& v, const std::string& key, const std::string& where) const {
@@ -240,8 +255,12 @@ PartSpec read_part(const Reader& r, const json& p, std::size_t index, double uni
   }
   for (const std::string& m : meshes) {
     const fs::path path = fs::path(m).is_absolute() ? fs::path(m) : fs::path(base_dir) / m;
-    if (!fs::exists(path)) r.fail(where, "mesh file '" + path.string() + "' does not exist");
-    part.meshes.push_back(fs::weakly_canonical(path).string());
+    std::error_code ec;
+    if (!fs::exists(path, ec)) r.fail(where, "mesh file '" + path.string() + "' does not exist");
+    if (!fs::is_regular_file(path, ec))
+      r.fail(where, "mesh file '" + path.string() + "' is not a regular file");
+    const fs::path canonical = fs::weakly_canonical(path, ec);
+    part.meshes.push_back(ec ? path.string() : canonical.string());
   }
   part.mesh_scale = r.unit(p, "mesh_units", mesh_units, where);
   const std::string topo = r.string(p, "topology", where);
@@ -319,9 +338,8 @@ void read_fixed(const Reader& r, const json& list, double units, const std::set<
       if (!f["vertices"].is_array() || f["vertices"].empty())
         r.fail(where, "'vertices' must be a non-empty list of indices");
       for (const json& v : f["vertices"]) {
-        if (!v.is_number_integer() || v.get<long long>() < 0)
-          r.fail(where, "'vertices' must be non-negative integers");
-        spec.vertices.push_back(Index(v.get<long long>()));
+        spec.vertices.push_back(
+            Index(r.integer(v, "vertices", where, 0, std::numeric_limits<Index>::max())));
       }
     } else {
       spec.kind = FixedSpec::Kind::chain_end;
@@ -341,21 +359,23 @@ Scene parse_scene(const std::string& text, const std::string& base_dir, const st
   json root;
   try {
     root = json::parse(text);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // a syntax error, or a number out of range (1e999)
     r.fail("", std::string("not valid JSON: ") + e.what());
   }
   r.keys(root,
-         {"format", "version", "name", "units", "mesh_units", "parts", "attachments", "fixed"},
+         {"format", "version", "name", "units", "mesh_units", "parts", "attachments", "fixed",
+          "limits"},
          "scene");
   if (!root.contains("format") || root["format"] != "fsm-scene")
     r.fail("scene", "'format' must be \"fsm-scene\"");
-  if (!root.contains("version") || !root["version"].is_number_integer())
-    r.fail("scene", "'version' must be an integer");
-  const int version = root["version"].get<int>();
-  if (version > kSceneVersion)
-    r.fail("scene", "scene version " + std::to_string(version) + " is newer than this builder (" +
-                        std::to_string(kSceneVersion) + ")");
-  if (version < 1) r.fail("scene", "'version' must be at least 1");
+  if (!root.contains("version")) r.fail("scene", "missing 'version'");
+  if (!root["version"].is_number_integer()) r.fail("scene", "'version' must be an integer");
+  // Newer first: a later builder's scene gets the message that says so.
+  if (root["version"].is_number_unsigned() &&
+      root["version"].get<unsigned long long>() > static_cast<unsigned long long>(kSceneVersion))
+    r.fail("scene", "scene version " + std::to_string(root["version"].get<unsigned long long>()) +
+                        " is newer than this builder (" + std::to_string(kSceneVersion) + ")");
+  r.integer(root["version"], "version", "scene", 1, kSceneVersion);
 
   Scene scene;
   scene.file = file;
@@ -371,16 +391,36 @@ Scene parse_scene(const std::string& text, const std::string& base_dir, const st
     scene.parts.push_back(read_part(r, p, scene.parts.size(), units, mesh_units, base_dir, names));
   if (root.contains("attachments")) read_attachments(r, root["attachments"], units, names, scene);
   if (root.contains("fixed")) read_fixed(r, root["fixed"], units, names, scene);
+  if (root.contains("limits")) {
+    const json& l = root["limits"];
+    r.keys(l, {"spheres", "elements", "memory_gb"}, "limits");
+    scene.limits.spheres = r.number_or(l, "spheres", scene.limits.spheres, "limits");
+    scene.limits.elements = r.number_or(l, "elements", scene.limits.elements, "limits");
+    scene.limits.memory_bytes =
+        r.number_or(l, "memory_gb", scene.limits.memory_bytes / 1e9, "limits") * 1e9;
+    if (!(scene.limits.spheres > 0) || !(scene.limits.elements > 0) ||
+        !(scene.limits.memory_bytes > 0))
+      r.fail("limits", "'spheres', 'elements' and 'memory_gb' must be positive");
+  }
   return scene;
 }
 
 Scene load_scene(const std::string& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw Error(path, "", "cannot open the scene file: it does not exist");
+  if (!fs::is_regular_file(path, ec)) throw Error(path, "", "cannot open the scene file: not a regular file");
+  // A scene is a few kilobytes; a file far larger is not one (and is not read into memory).
+  constexpr std::uintmax_t k_max_scene_bytes = 16u << 20;
+  const std::uintmax_t size = fs::file_size(path, ec);
+  if (!ec && size > k_max_scene_bytes)
+    throw Error(path, "", "the scene file has " + std::to_string(size) +
+                              " bytes; a scene is at most 16 MiB");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error(path, "", "cannot open the scene file");
   std::stringstream text;
   text << in.rdbuf();
-  const fs::path p = fs::absolute(path);
-  return parse_scene(text.str(), p.parent_path().string(), path);
+  const fs::path p = fs::absolute(path, ec);
+  return parse_scene(text.str(), (ec ? fs::path(path) : p).parent_path().string(), path);
 }
 
 }  // namespace fsm::build

@@ -24,6 +24,14 @@ struct QualityStats {
   double mean_edge{0};  ///< m
 };
 
+/// @brief What filling a part is estimated to cost, before it is filled (BuildLimits).
+struct WorkEstimate {
+  double spheres{0};       ///< Spheres the filling will make.
+  double elements{0};      ///< Tetrahedra, links, or faces of an alpha wrap.
+  double memory_bytes{0};  ///< Peak memory of the filling (bytes).
+  std::string basis;       ///< How it was estimated, in words ("volume 64 cm^3 at 5 mm").
+};
+
 /// @brief One part's line of the report (the paper's Table 1 and more).
 struct PartReport {
   std::string name;
@@ -38,6 +46,8 @@ struct PartReport {
   std::vector<MeshReport> meshes;
   std::string metric;     ///< Tetrahedral: the metric's description.
   std::string optimiser;  ///< Tetrahedral: the optimiser used.
+  WorkEstimate estimate;  ///< The work estimated before filling.
+  std::vector<std::string> warnings;  ///< What built but may not be what was meant.
 };
 
 /// @brief What a build produced.
@@ -47,8 +57,10 @@ struct BuildReport {
   Index spheres{0}, links{0}, attachment_links{0}, fixed_nodes{0};
   double seconds{0};
 
-  /// @brief A Table-1-like text table.
+  /// @brief A Table-1-like text table (warnings below it).
   [[nodiscard]] std::string table() const;
+  /// @brief Every part's warnings, prefixed with the part's name.
+  [[nodiscard]] std::vector<std::string> warnings() const;
   /// @brief The same as JSON (field names in docs/builder.md).
   [[nodiscard]] std::string json() const;
 };
@@ -61,6 +73,9 @@ class HybridTopologyBuilder {
 
   explicit HybridTopologyBuilder(Scene scene);
   void set_progress(Progress progress) { m_progress = std::move(progress); }
+  /// @brief Replaces the scene's limits (a command-line override). fsm::Error for a limit that is
+  /// not positive.
+  void set_limits(const BuildLimits& limits);
   /// @brief Builds every part, joins them, fixes anchors, binds the render surface. fsm::Error
   /// naming file, part and reason on bad input; the scene is left untouched.
   TissueModel<double> build();
@@ -69,6 +84,7 @@ class HybridTopologyBuilder {
 
  private:
   Scene m_scene;
+  BuildLimits m_limits;
   Progress m_progress;
   BuildReport m_report;
 };

@@ -4,12 +4,40 @@
 /// @brief Reading surface meshes (OBJ, OFF, STL, PLY), checking them, and repairing them on
 /// request (part of fsm::build, GPL-3.0-or-later; CGAL stays inside src/builder).
 
+#include <array>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "fsm/triangle_mesh.hpp"
 
 namespace fsm::build {
+
+/// @brief The mesh file formats read_mesh() reads.
+enum class MeshFormat { obj, off, stl, ply };
+
+/// @brief The format of a path by its extension (case-insensitive), or nullopt.
+std::optional<MeshFormat> mesh_format(const std::string& path);
+
+/// @brief A mesh file's content as written: points and polygons (indices into the points), before
+/// welding and triangulation.
+struct PolygonSoup {
+  std::vector<std::array<double, 3>> points;      ///< in the file's units
+  std::vector<std::vector<std::size_t>> polygons;  ///< each at least 3 indices, all < points.size()
+};
+
+/// @brief Parses the bytes of a mesh file (untrusted input). Every count the file declares is
+/// checked against the bytes that remain before anything is allocated for it; coordinates must
+/// be finite and indices in range. fsm::Error naming `file` and, in `reason()`, the line (text
+/// formats) or byte offset (binary) and what is wrong there, e.g. "line 12: z coordinate 'nan'
+/// is not finite (NaN, infinite or too large)".
+///
+/// OBJ: `v` and `f` statements (1-based or negative indices; other statements are ignored). OFF:
+/// `OFF`, `COFF`, `NOFF` (text). STL: binary or ASCII. PLY: ASCII or binary of either byte order,
+/// any scalar types, vertex `x y z`, face `vertex_indices` (or `vertex_index`); other elements
+/// and properties are skipped.
+PolygonSoup parse_mesh(std::string_view bytes, MeshFormat format, const std::string& file = "");
 
 /// @brief What inspect_mesh() found in one surface mesh.
 struct MeshReport {

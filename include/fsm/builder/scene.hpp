@@ -77,6 +77,15 @@ struct FixedSpec {
   bool last{false};             ///< chain_end: the last chain node instead of the first
 };
 
+/// @brief How much work a build may do (docs/builder.md, "Resource budget"). Before it fills a
+/// part (or wraps its meshes) the builder estimates the spheres, elements and memory that will
+/// take, and refuses, naming the estimate, when the scene's running total would pass a limit.
+struct BuildLimits {
+  double spheres{200'000};      ///< Spheres of the whole model.
+  double elements{3'000'000};   ///< Tetrahedra, links and alpha-wrap faces of the whole model.
+  double memory_bytes{4.0e9};   ///< Peak memory the build is estimated to need (bytes).
+};
+
 /// @brief A scene: parts, attachments, fixed regions.
 struct Scene {
   std::string name;
@@ -84,6 +93,7 @@ struct Scene {
   std::vector<PartSpec> parts;
   std::vector<AttachmentSpec> attachments;
   std::vector<FixedSpec> fixed;
+  BuildLimits limits;  ///< The scene's "limits", else the defaults.
 };
 
 /// @brief Reads and checks a scene file. Paths are resolved against the scene file's folder,

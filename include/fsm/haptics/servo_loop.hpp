@@ -124,6 +124,8 @@ class ServoLoop {
 
   /// @brief True after the watchdog or a diverged step zeroed the force.
   [[nodiscard]] bool tripped() const noexcept { return m_tripped.load(); }
+  /// @brief The device the loop drives.
+  [[nodiscard]] HapticDevice& device() const noexcept { return m_device; }
   /// @brief Clears a trip now; the force ramps in again.
   void rearm() noexcept;
 

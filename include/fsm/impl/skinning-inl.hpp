@@ -48,9 +48,13 @@ void Skin<Scalar>::validate(Index num_spheres) const {
     fail("skin", "per-vertex arrays do not match the " + std::to_string(n) + " render vertices");
   if (chain_rest_tangents.rows() != chain_nodes.rows())
     fail("skin", "chain tables have different lengths");
+  // Ranges in 64 bits: a crafted first index near 2^31 plus a count must not wrap.
+  const auto inside = [](Index first, Index count, Index size) {
+    return first >= 0 && count >= 0 && std::int64_t(first) + std::int64_t(count) <= size;
+  };
   for (const Surface& s : surfaces)
-    if (s.first_vertex < 0 || s.num_vertices < 0 || s.first_vertex + s.num_vertices > n ||
-        s.first_face < 0 || s.num_faces < 0 || s.first_face + s.num_faces > rest.num_faces())
+    if (!inside(s.first_vertex, s.num_vertices, n) ||
+        !inside(s.first_face, s.num_faces, rest.num_faces()))
       fail("surface '" + s.name + "'", "range outside the skin");
   if ((chain_nodes.array() < 0).any() || (chain_nodes.array() >= num_spheres).any())
     fail("skin", "a chain node names a sphere out of range");
@@ -67,6 +71,10 @@ void Skin<Scalar>::validate(Index num_spheres) const {
       for (int k = 0; k < 2; ++k)
         if (nodes(v, k) < 0 || nodes(v, k) >= Index(chain_nodes.rows()))
           fail(where, "chain node index out of range");
+      // The two rows are blended by (w0, w1): a convex pair, or the blended rotation is 0 / 0.
+      if (!(weights(v, 0) >= Scalar(0) && weights(v, 1) >= Scalar(0)) ||
+          std::abs(weights(v, 0) + weights(v, 1) - Scalar(1)) > Scalar(1e-4))
+        fail(where, "chain weights must be non-negative and sum to 1");
     } else {
       fail(where, "unknown binding kind " + std::to_string(int(kind[v])));
     }

@@ -239,7 +239,19 @@ void ServoLoop::physics_step(double t) noexcept {
   ++m_steps;
 }
 
+namespace {
+// A run's length, checked before anything starts: finite, non-negative, and not so long that
+// its tick count overflows (a trillion ticks is 30 years at 1 kHz).
+void check_seconds(double seconds, double rate) {
+  if (!(seconds >= 0) || !std::isfinite(seconds) || seconds * rate > 1e12)
+    throw Error("", "servo loop",
+                "seconds must be finite, non-negative and at most 1e12 ticks long, got " +
+                    std::to_string(seconds));
+}
+}  // namespace
+
 void ServoLoop::run_fast(double seconds) {
+  check_seconds(seconds, m_options.rate);
   begin();
   const auto ticks = std::int64_t(std::llround(seconds * m_options.rate));
   for (std::int64_t k = 0; k < ticks; ++k) {
@@ -325,6 +337,7 @@ void ServoLoop::start() {
 }
 
 void ServoLoop::run_real_time(double seconds) {
+  check_seconds(seconds, m_options.rate);
   begin();
   try {
     if (m_options.threading == ServoOptions::Threading::lockstep) {

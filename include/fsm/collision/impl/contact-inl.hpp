@@ -103,6 +103,23 @@ Index ContactSolver<Scalar>::add_instrument(const Instrument<Scalar>& instrument
   return Index(m_instruments.size() - 1);
 }
 
+namespace detail {
+/// The hash cell of a point: floor(p / cell), clamped to +-2^28 so that converting to int (and
+/// differences of cells) stays defined for any finite coordinate.
+template <typename Derived, typename Scalar>
+Eigen::Vector3i hash_cell(const Eigen::MatrixBase<Derived>& p, Scalar inverse_cell) noexcept {
+  constexpr double k_limit = double(1 << 28);
+  return (p.template cast<double>() * double(inverse_cell))
+      .array()
+      .floor()
+      .max(-k_limit)
+      .min(k_limit)
+      .template cast<int>()
+      .matrix()
+      .transpose();
+}
+}  // namespace detail
+
 template <typename Scalar>
 std::uint32_t ContactSolver<Scalar>::slot(const Eigen::Vector3i& c) const noexcept {
   const std::uint32_t h = std::uint32_t(c.x()) * 73856093u ^ std::uint32_t(c.y()) * 19349663u ^
@@ -117,7 +134,7 @@ void ContactSolver<Scalar>::update_hash(const SphereModel<Scalar>& model) noexce
   for (Index i = 0; i < model.num_nodes(); ++i) {
     const auto p = x.row(i);
     if (!p.allFinite()) continue;  // keep the old cell; such a state is never stepped
-    const Eigen::Vector3i c((p * inv).array().floor().template cast<int>());
+    const Eigen::Vector3i c = detail::hash_cell(p, inv);
     const std::size_t k = std::size_t(i);
     if (m_hashed && c == m_cell_of[k]) continue;
     if (m_hashed) {  // unlink from the old slot
@@ -144,8 +161,8 @@ void ContactSolver<Scalar>::for_each_in_box(const Vector3<Scalar>& lo, const Vec
                                             Visit&& visit) const {
   if (!lo.allFinite() || !hi.allFinite()) return;
   const Scalar inv = Scalar(1) / m_cell;
-  const Eigen::Vector3i a((lo * inv).array().floor().template cast<int>());
-  const Eigen::Vector3i b((hi * inv).array().floor().template cast<int>());
+  const Eigen::Vector3i a = detail::hash_cell(lo.transpose(), inv);
+  const Eigen::Vector3i b = detail::hash_cell(hi.transpose(), inv);
   const double cells =
       double(b.x() - a.x() + 1) * double(b.y() - a.y() + 1) * double(b.z() - a.z() + 1);
   if (!m_options.spatial_hash) {  // brute force: every sphere
