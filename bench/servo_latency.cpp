@@ -5,7 +5,9 @@
 //
 //   servo_latency [--seconds 30] [--threading lockstep|decoupled] [--integrator NAME] [--tolerance
 //   T]
-//                 [--json] [--stall-test]
+//                 [--json] [--stall-test] [--stress [N]]
+//
+// --stress runs N (default 1) competing busy processes for the run (docs/haptics.md).
 
 #include <chrono>
 #include <cstdio>
@@ -20,6 +22,7 @@
 #include "fsm/implicit_euler_integrator.hpp"
 #include "fsm_support/model_cache.hpp"
 #include "fsm_support/probe.hpp"
+#include "fsm_support/stress.hpp"
 
 using namespace fsm;
 using namespace fsm::haptics;
@@ -44,6 +47,7 @@ int main(int argc, char** argv) {
   std::string threading = "lockstep", integrator = "implicit_euler";
   double tolerance = 1e-3;
   bool json = false, stall_test = false;
+  int stress = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--seconds" && i + 1 < argc)
@@ -56,10 +60,17 @@ int main(int argc, char** argv) {
       json = true;
     else if (a == "--stall-test")
       stall_test = true;
-    else {
+    else if (a == "--stress") {
+      stress = 1;
+      if (i + 1 < argc && argv[i + 1][0] != '-') stress = std::atoi(argv[++i]);
+      if (stress < 1 || stress > 64) {
+        std::fprintf(stderr, "servo_latency: --stress takes 1 to 64 processes\n");
+        return 2;
+      }
+    } else {
       std::fprintf(stderr,
                    "usage: %s [--seconds S] [--threading lockstep|decoupled] [--integrator NAME] "
-                   "[--json] [--stall-test]\n",
+                   "[--json] [--stall-test] [--stress [N]]\n",
                    argv[0]);
       return 2;
     }
@@ -120,6 +131,7 @@ int main(int argc, char** argv) {
           }
         }
       });
+    const support::BusyProcesses busy(stress);
     const auto wall0 = std::chrono::steady_clock::now();
     loop.run_real_time(seconds);
     const double wall =
@@ -134,14 +146,17 @@ int main(int argc, char** argv) {
           "\"period_max_us\": %.2f, \"period_error_p99_us\": %.2f, \"period_error_max_us\": %.2f, "
           "\"step_p50_us\": %.2f, \"step_p99_us\": %.2f, \"step_max_us\": %.2f, "
           "\"watchdog_trips\": %zu, "
-          "\"diverged_steps\": %zu, \"peak_force_N\": %.4f, \"stall_zero_after_us\": %.1f}\n",
+          "\"diverged_steps\": %zu, \"peak_force_N\": %.4f, \"stall_zero_after_us\": %.1f, "
+          "\"stress_processes\": %d}\n",
           wall, threading.c_str(), integrator.c_str(), int(sim.model().num_nodes()), s.ticks,
           s.steps, s.missed_deadlines, s.period_p50 * 1e6, s.period_p99 * 1e6, s.period_max * 1e6,
           s.period_error_p99 * 1e6, s.period_error_max * 1e6, s.step_p50 * 1e6, s.step_p99 * 1e6,
-          s.step_max * 1e6, s.watchdog_trips, s.diverged_steps, s.peak_force, zero_after * 1e6);
+          s.step_max * 1e6, s.watchdog_trips, s.diverged_steps, s.peak_force, zero_after * 1e6,
+          busy.count());
     } else {
-      std::printf("servo loop, %s, %s, uterus %d spheres, %.1f s wall\n", threading.c_str(),
-                  integrator.c_str(), int(sim.model().num_nodes()), wall);
+      std::printf("servo loop, %s, %s, uterus %d spheres, %.1f s wall, %d competing process(es)\n",
+                  threading.c_str(), integrator.c_str(), int(sim.model().num_nodes()), wall,
+                  busy.count());
       std::printf("  ticks %zu, steps %zu, missed deadlines %zu\n", s.ticks, s.steps,
                   s.missed_deadlines);
       std::printf(

@@ -3,7 +3,11 @@
 # it installs whatever is missing, configures, builds and runs.
 #
 #   tools/dev.sh demo [ARGS...]   the main job: fsm-demo, the uterus session (ARGS go to it)
-#   tools/dev.sh test             every test: GoogleTest suite, packaging, benchmark smoke runs
+#   tools/dev.sh test             every test: GoogleTest suite, packaging, benchmark smoke runs,
+#                                 then `sanitize` and `fuzz 60`
+#   tools/dev.sh sanitize         the unit tests under ASan + UBSan, the threaded ones under TSan
+#   tools/dev.sh fuzz [SECONDS]   each fuzzer for SECONDS (default 60) from its seeds, then the
+#                                 regression inputs; a finding stops with the file to keep
 #   tools/dev.sh bench [ARGS...]  the benchmarks, full length (ARGS go to Google Benchmark)
 #   tools/dev.sh charts           measure (benchmarks + integrator accuracy) into docs/data and
 #                                 draw docs/img/*.png; takes about 20 minutes
@@ -23,6 +27,7 @@ PACKAGES=(
   python3-venv python3-pip python3-setuptools python3-wheel
   python3-matplotlib python3-distributed calculix-ccx
   libglfw3-dev libegl-dev libgl-dev libosmesa6-dev libgl1-mesa-dri libstb-dev xvfb xauth
+  clang libclang-rt-14-dev
 )
 
 install_deps() {
@@ -55,6 +60,81 @@ build() {
   cmake --build "$BUILD_DIR" -j "$JOBS" "${targets[@]}"
 }
 
+# Configures (if needed) and builds TARGETS in DIR, compiling with CXXFLAGS only (the build type
+# "Checked" adds none: -O1 -g1 below keeps the instrumented builds quick and their reports
+# symbolised), with extra cmake arguments (words without spaces):
+#   build_in DIR "CXXFLAGS" "CMAKE ARGS..." TARGET...
+build_in() {
+  local dir=$1 flags=$2 args=$3
+  shift 3
+  local launcher=()
+  command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+  # shellcheck disable=SC2086  # the extra arguments are words
+  cmake -S . -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=Checked -DFSM_BUILD_BENCHMARKS=OFF \
+    -DFSM_BUILD_EXAMPLES=OFF -DFSM_BUILD_PYTHON=OFF -DFSM_BUILD_BUILDER=OFF \
+    -DFSM_USE_OPENMP=OFF "-DCMAKE_CXX_FLAGS=$flags" "${launcher[@]}" $args >/dev/null
+  cmake --build "$dir" -j "$JOBS" --target "$@"
+}
+
+# The runtime's unit tests under AddressSanitizer + UndefinedBehaviorSanitizer, and the tests that
+# run threads (servo loop, devices, the Touch adapter, simulation) under ThreadSanitizer. Only what
+# they test is built (the runtime, no CGAL), and the test programs run directly.
+UNIT_TESTS=(test_voigt_link test_material test_sphere_model test_tetrahedral_mesh test_force_model
+  test_stability test_integrators test_simulation test_skinning test_model_file test_shapes
+  test_triangle_bvh test_volume_term test_contact test_haptic_device test_servo_loop
+  test_malformed_models test_no_allocation touch/test_touch_device)
+THREAD_TESTS=(test_servo_loop test_haptic_device test_simulation touch/test_touch_device)
+run_tests() {  # run_tests DIR PROGRAM...: each test program, stopping at the first failure
+  local dir=$1 t
+  shift
+  for t in "$@"; do
+    echo "tools/dev.sh: $dir: $t" >&2
+    "$dir/tests/$t" --gtest_brief=1 || return 1
+  done
+}
+sanitize() {
+  local dir=${BUILD_DIR}-asan
+  build_in "$dir" "-O1 -g1 -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined" \
+    "" "${UNIT_TESTS[@]##*/}"
+  ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
+    run_tests "$dir" "${UNIT_TESTS[@]}"
+  dir=${BUILD_DIR}-tsan
+  build_in "$dir" "-O1 -g1 -fsanitize=thread" "" "${THREAD_TESTS[@]##*/}"
+  # setarch -R: GCC 12's TSan cannot map its shadow memory under the kernel's full ASLR.
+  TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1 \
+    setarch "$(uname -m)" -R bash -c "$(declare -f run_tests); run_tests \"\$@\"" _ \
+    "$dir" "${THREAD_TESTS[@]}"
+}
+
+# libFuzzer (clang) on the model-file reader, the scene parser and the mesh parsers, each for
+# SECONDS from a copy of its seeds (tests/fuzz/corpus), then the seeds and regression inputs.
+fuzz() {
+  local seconds=${1:-60} dir=${BUILD_DIR}-fuzz
+  build_in "$dir" "-O1 -gline-tables-only -fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=undefined" \
+    "-DCMAKE_CXX_COMPILER=clang++ -DFSM_BUILD_TESTS=OFF -DFSM_BUILD_FUZZERS=ON" \
+    fuzz_model_file fuzz_scene fuzz_mesh
+  local work=$dir/fuzz-work t
+  rm -rf "$work"
+  mkdir -p "$work/findings"
+  # The scene fuzzer resolves mesh paths against its folder: give it the meshes its seeds name.
+  cp data/uterus/*.obj tests/malformed/box.off "$work/"
+  for t in cube.obj cube.off cube.stl cube.ply; do cp tests/malformed/box.off "$work/$t"; done
+  for t in fuzz_model_file fuzz_scene fuzz_mesh; do
+    cp -r "tests/fuzz/corpus/$t" "$work/corpus-$t"
+    echo "tools/dev.sh: fuzzing $t for $seconds s" >&2
+    if ! (cd "$work" && "$OLDPWD/$dir/tests/fuzz/$t" -max_total_time="$seconds" -timeout=10 \
+          -rss_limit_mb=2048 -artifact_prefix=findings/ -print_final_stats=1 "corpus-$t" \
+          >"$t.log" 2>&1); then
+      tail -40 "$work/$t.log" >&2
+      echo "tools/dev.sh: $t found an input that fails: $(ls "$work"/findings/*); fix it and keep" \
+           "the file in tests/fuzz/regressions/$t/ (it then runs as a test)" >&2
+      return 1
+    fi
+    grep -E "^stat::number_of_executed_units|^Done" "$work/$t.log" >&2 || true
+  done
+  ctest --test-dir "$dir" --output-on-failure -j "$JOBS" -L fuzz
+}
+
 cmd=${1:-}
 [ $# -gt 0 ] && shift
 case "$cmd" in
@@ -66,7 +146,17 @@ case "$cmd" in
   test)
     install_deps
     build
-    exec ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$JOBS"
+    ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$JOBS"
+    sanitize
+    fuzz 60
+    ;;
+  sanitize)
+    install_deps
+    sanitize
+    ;;
+  fuzz)
+    install_deps
+    fuzz "$@"
     ;;
   bench)
     install_deps

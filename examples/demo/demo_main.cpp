@@ -5,6 +5,7 @@
 // statistics. Writes PNG renders (rest, deformed), the frame-rate plot and the deformed surface.
 //
 //   fsm-demo [--seconds S] [--out DIR] [--model FILE.fsm|SCENE.json] [--json] [--no-render]
+//            [--stress [N]]
 //
 // Field names of --json: docs/demo.md.
 
@@ -26,6 +27,7 @@
 #include "fsm/model_file.hpp"
 #include "fsm_support/model_cache.hpp"
 #include "fsm_support/probe.hpp"
+#include "fsm_support/stress.hpp"
 #include "gl_scene.hpp"
 #include "offscreen.hpp"
 
@@ -41,6 +43,7 @@ struct Args {
   std::string model;
   bool json{false};
   bool render{true};
+  int stress{0};  // competing busy processes during the session
 };
 
 Args parse(int argc, char** argv) {
@@ -62,6 +65,11 @@ Args parse(int argc, char** argv) {
       a.json = true;
     } else if (s == "--no-render") {
       a.render = false;
+    } else if (s == "--stress") {
+      a.stress = 1;
+      if (i + 1 < argc && argv[i + 1][0] != '-') a.stress = std::atoi(argv[++i]);
+      if (a.stress < 1 || a.stress > 64)
+        throw Error("", "fsm-demo", "--stress takes 1 to 64 processes");
     } else if (s == "--help" || s == "-h") {
       std::printf(
           "usage: fsm-demo [--seconds S] [--out DIR] [--model FILE.fsm|SCENE.json] [--json] "
@@ -73,7 +81,8 @@ Args parse(int argc, char** argv) {
           "  --model F     a model file, or a scene to build (default: the bundled uterus, "
           "cached)\n"
           "  --json        print the statistics as JSON (docs/demo.md)\n"
-          "  --no-render   skip the PNG renders\n");
+          "  --no-render   skip the PNG renders\n"
+          "  --stress [N]  run N (default 1) competing busy processes during the session\n");
       std::exit(0);
     } else {
       throw Error("", "fsm-demo", "unknown argument '" + s + "' (try --help)");
@@ -183,6 +192,8 @@ int main(int argc, char** argv) {
     ServoOptions o;
     o.max_recorded_ticks = std::size_t(args.seconds * 1000) + 64;
     ServoLoop loop(sim, contacts, k, device, o);
+    // Before any thread starts: the children only spin.
+    const support::BusyProcesses stress(args.stress);
 
     // Render side (this thread): snapshots at 60 Hz, skinning, normals, BVH refit (for picking).
     auto ws = model.skin.make_workspace();
@@ -303,13 +314,13 @@ int main(int argc, char** argv) {
         "\"servo_period_error_p99_us\": %.1f, \"step_p50_us\": %.1f, \"step_p99_us\": %.1f, "
         "\"step_max_us\": %.1f, "
         "\"watchdog_trips\": %zu, \"diverged_steps\": %zu, \"peak_instrument_force_N\": %.4f, "
-        "\"peak_commanded_force_N\": %.4f, \"out\": \"%s\"}",
+        "\"peak_commanded_force_N\": %.4f, \"stress_processes\": %d, \"out\": \"%s\"}",
         model.name.c_str(), int(model.spheres.num_nodes()), int(model.spheres.num_links()),
         int(model.skin.num_vertices()), snap.time, frame_hz.size(), fmin, fmed, fmax,
         skin_mean * 1e6, st.ticks, st.missed_deadlines, st.period_p50 * 1e6, st.period_p99 * 1e6,
         st.period_max * 1e6, st.period_error_p99 * 1e6, st.step_p50 * 1e6, st.step_p99 * 1e6,
         st.step_max * 1e6, st.watchdog_trips, st.diverged_steps, peak, st.peak_force,
-        args.out.c_str());
+        stress.count(), args.out.c_str());
     {
       std::ofstream f(args.out + "/stats.json");
       f << json << '\n';

@@ -29,4 +29,17 @@ execute_process(COMMAND ${FSM_BUILD} RESULT_VARIABLE rc ERROR_VARIABLE err)
 if(NOT rc EQUAL 2 OR NOT err MATCHES "usage")
   message(FATAL_ERROR "no arguments: exit ${rc}, message '${err}'")
 endif()
+# The resource budget from the command line: a limit below the model is refused naming the flag.
+execute_process(COMMAND ${FSM_BUILD} ${SOURCE_DIR}/data/uterus/uterus.json -o ${WORK_DIR}/x.fsm
+                        --quiet --max-spheres 100
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+if(NOT rc EQUAL 1 OR NOT err MATCHES "more than the limit of 100" OR NOT err MATCHES "--max-spheres")
+  message(FATAL_ERROR "--max-spheres 100: exit ${rc}, message '${err}'")
+endif()
+execute_process(COMMAND ${FSM_BUILD} ${SOURCE_DIR}/data/uterus/uterus.json -o ${WORK_DIR}/x.fsm
+                        --max-spheres -3
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+if(NOT rc EQUAL 2 OR NOT err MATCHES "positive number")
+  message(FATAL_ERROR "--max-spheres -3: exit ${rc}, message '${err}'")
+endif()
 message(STATUS "fsm-build: ${spheres} spheres in ${parts} parts")

@@ -174,6 +174,47 @@ TEST_F(Scenes, BadScenesAreNamed) {
 
 // An open mesh is refused naming the file and the defect; with an alpha wrap it builds. An inward
 // mesh is refused with a hint; with "orient" it builds.
+// The resource budget: a scene's limits below what it asks for are refused before the filling,
+// with the estimate; raising them (as --max-spheres does) builds the same scene; the estimate is
+// in the report and within a small factor of what was built.
+TEST_F(Scenes, ResourceBudgetRefusesThenAllowsWhenRaised) {
+  const std::string path =
+      scene(ball() + "," + tube(), anchors() + R"(, "limits": {"spheres": 20})");
+  Scene s = load_scene(path);
+  EXPECT_EQ(s.limits.spheres, 20);
+  try {
+    HybridTopologyBuilder(s).build();
+    ADD_FAILURE() << "built past the limit";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.part(), "ball");
+    EXPECT_NE(e.reason().find("the tetrahedral filling would need about"), std::string::npos)
+        << e.what();
+    EXPECT_NE(e.reason().find("more than the limit of 20"), std::string::npos) << e.what();
+  }
+  HybridTopologyBuilder raised(s);
+  BuildLimits more = s.limits;
+  more.spheres = 1e5;
+  raised.set_limits(more);
+  const TissueModel<double> m = raised.build();
+  const PartReport& ball_report = raised.report().parts.front();
+  EXPECT_GT(ball_report.estimate.spheres, 0.8 * double(ball_report.spheres));
+  EXPECT_LT(ball_report.estimate.spheres, 3.0 * double(ball_report.spheres));
+  EXPECT_NE(ball_report.estimate.basis.find("at element size 5 mm"), std::string::npos)
+      << ball_report.estimate.basis;
+  EXPECT_GT(ball_report.estimate.memory_bytes, 0);
+  EXPECT_THROW(raised.set_limits(BuildLimits{0, 1, 1}), Error);
+  // Memory and elements are limits too.
+  HybridTopologyBuilder tight(s);
+  tight.set_limits(BuildLimits{1e5, 1e5, 1e3});
+  try {
+    tight.build();
+    ADD_FAILURE() << "built past the memory limit";
+  } catch (const Error& e) {
+    EXPECT_NE(e.reason().find("bytes of memory"), std::string::npos) << e.what();
+    EXPECT_NE(e.reason().find("memory_gb"), std::string::npos) << e.what();
+  }
+}
+
 TEST_F(Scenes, RepairsOnlyWhenAsked) {
   TriangleMesh<double> open = test::icosphere(0.02, 3);
   open.faces.conservativeResize(open.faces.rows() - 5, 3);
