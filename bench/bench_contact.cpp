@@ -157,7 +157,7 @@ SessionResult run_session(bool sleep) {
   o.sleep.enabled = sleep;
   o.forces.drag = 5;
   Simulation<double> sim(model.spheres, o);
-  ContactSolver<double> solver(sim.model());
+  ContactSolver<double> solver(sim.model(), sim.forces());
   const Index k = solver.add_instrument(probe(model.spheres, model.part("body")));
   solver.instrument(k).enabled = false;
   SessionResult r;
@@ -171,9 +171,9 @@ SessionResult run_session(bool sleep) {
       solver.instrument(k).enabled = true;
     }
     for (int s = 0; s < 1000; ++s, ++steps) {
-      sim.external_forces().setZero();
-      solver.compute(sim.model(), sim.external_forces());
+      solver.compute(sim.model(), sim.forces());
       sim.step(1e-3);
+      solver.collect(sim.forces());
       r.force.push_back(solver.wrench(k).force.norm());
       asleep += double(sim.num_asleep()) / double(sim.model().num_regions());
     }

@@ -38,7 +38,7 @@ void BM_WholeFrame(benchmark::State& state) {
   ImplicitEulerIntegrator<double>::Options io;
   io.tolerance = tolerance;
   sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
-  collision::ContactSolver<double> contacts(sim.model());
+  collision::ContactSolver<double> contacts(sim.model(), sim.forces());
   // Probe the body's outermost sphere.
   const support::CapsuleProbe probe = support::capsule_probe(model, "body");
   const Index k = contacts.add_instrument(probe.instrument(0));
@@ -53,9 +53,9 @@ void BM_WholeFrame(benchmark::State& state) {
       const double pi = 3.14159265358979;
       probe.press(contacts, k, 0.001 + 0.001 * std::sin(2 * pi * t),
                   0.002 * pi * std::cos(2 * pi * t));
-      sim.external_forces().setZero();
-      contacts.compute(sim.model(), sim.external_forces());
+      contacts.compute(sim.model(), sim.forces());
       iterations += sim.step(1e-3).solver_iterations;
+      contacts.collect(sim.forces());
     }
     model.skin.evaluate(sim.model().positions(), ws, surface);
     compute_vertex_normals<double>(surface, model.skin.rest.faces, normals);

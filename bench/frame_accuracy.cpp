@@ -37,7 +37,7 @@ Run run(const TissueModel<double>& model, double tolerance, bool sleep) {
   io.tolerance = tolerance;
   io.max_iterations = 1000;
   sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
-  collision::ContactSolver<double> contacts(sim.model());
+  collision::ContactSolver<double> contacts(sim.model(), sim.forces());
   const support::CapsuleProbe probe = support::capsule_probe(model, "body");
   const Index k = contacts.add_instrument(probe.instrument(0));
   auto ws = model.skin.make_workspace();
@@ -53,9 +53,9 @@ Run run(const TissueModel<double>& model, double tolerance, bool sleep) {
       const double t = double(frame * 17 + s) * 1e-3;
       probe.press(contacts, k, 0.001 + 0.001 * std::sin(2 * pi * t),
                   0.002 * pi * std::cos(2 * pi * t));
-      sim.external_forces().setZero();
-      contacts.compute(sim.model(), sim.external_forces());
+      contacts.compute(sim.model(), sim.forces());
       const auto rep = sim.step(1e-3);
+      contacts.collect(sim.forces());
       if (frame >= 60) iterations += rep.solver_iterations;
       if (frame >= 60) r.force.push_back(contacts.wrench(k).force.norm());
     }

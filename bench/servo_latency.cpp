@@ -87,7 +87,7 @@ int main(int argc, char** argv) {
       io.tolerance = tolerance;
       sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
     }
-    collision::ContactSolver<double> contacts(sim.model());
+    collision::ContactSolver<double> contacts(sim.model(), sim.forces());
     collision::Instrument<double> tool;
     tool.name = "probe";
     tool.shape = collision::SphereShape<double>{0.003};

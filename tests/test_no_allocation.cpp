@@ -63,6 +63,41 @@ TYPED_TEST(NoAllocation, StepAllocatesNothingForAnyIntegrator) {
   }
 }
 
+// The continuum law and instrument contacts in the step: every integrator, contacts handed to the
+// force model by the solver each step (as ServoLoop does).
+TYPED_TEST(NoAllocation, ContinuumWithContactsAllocatesNothing) {
+  using S = TypeParam;
+  for (const auto& name : integrator_names()) {
+    SphereModel<S> model = jittered_block<S>();
+    model.set_region_law(0, ForceLaw::continuum);
+    typename Simulation<S>::Options o;
+    o.integrator = name;
+    Simulation<S> sim(model, o);
+    collision::ContactSolver<S> contacts(sim.model(), sim.forces());
+    collision::Instrument<S> tool;
+    tool.shape = collision::SphereShape<S>{S(0.004)};
+    tool.pose.position = Vector3<S>(S(0.0075), S(0.0075), S(0.021));
+    tool.linear_velocity = Vector3<S>(0, 0, S(-0.01));
+    const Index k = contacts.add_instrument(tool);
+    const S dt = name == "implicit_euler" ? S(1e-3) : S(0.5) * sim.stable_time_step();
+    Index touched = 0;
+    auto step = [&] {
+      contacts.instrument(k).pose.position.z() -= S(0.01) * dt;
+      contacts.compute(sim.model(), sim.forces());
+      touched = std::max(touched, contacts.num_contacts());
+      (void)sim.step(dt);
+      contacts.collect(sim.forces());
+    };
+    step();
+    g_allocations = 0;
+    g_counting = true;
+    for (int s = 0; s < 50; ++s) step();
+    g_counting = false;
+    EXPECT_EQ(g_allocations.load(), 0) << name;
+    EXPECT_GT(touched, 0) << name;  // the tool really pressed
+  }
+}
+
 // The rollback and sub-stepping paths too: an explicit scheme far beyond its limit.
 TYPED_TEST(NoAllocation, DivergenceAndSubSteppingAllocateNothing) {
   using S = TypeParam;

@@ -22,7 +22,7 @@ struct Scene {
   Index tool{0};
 
   explicit Scene(const std::string& integrator = "implicit_euler", double E = 13150)
-      : sim(make_block(E), options(integrator)), contacts(sim.model()) {
+      : sim(make_block(E), options(integrator)), contacts(sim.model(), sim.forces()) {
     Instrument<double> ins;
     ins.name = "probe";
     ins.shape = SphereShape<double>{0.003};

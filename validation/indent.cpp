@@ -153,13 +153,13 @@ int run(const Args& a) {
   double kappa = 0;
   if (a.poisson > 0 || a.kappa > 0) {
     const build::PartSpec& spec = scene.parts[0];
-    if (tissue.tetrahedra.rows() == 0)
+    if (tissue.spheres.num_tetrahedra() == 0)
       throw Error(a.scene, spec.name, "the volume term needs a tetrahedral part");
     // kappa for the target Poisson's ratio at the network's (scaled) shear modulus.
     kappa = a.kappa >= 0 ? a.kappa
                          : VolumeTerm<double>::bulk_modulus_for(
                                spec.material.youngs_modulus * a.stiffness_scale, a.poisson);
-    volume = VolumeTerm<double>(tissue.tetrahedra, rest, kappa);
+    volume = VolumeTerm<double>(TetrahedronArray(tissue.spheres.tetrahedra()), rest, kappa);
   }
 
   Simulation<double>::Options opt;

@@ -100,7 +100,7 @@ int main(int argc, char** argv) {
     const ScalarArray<double> k0 = base.stiffness(), kd0 = base.damping();
 
     // The filling's tetrahedra, for the volume term.
-    const TetrahedronArray& tetrahedra = tissue.tetrahedra;
+    const TetrahedronArray tetrahedra = tissue.spheres.tetrahedra();
 
     const std::vector<double> moduli{1e3, 3e3, 1e4, 3e4, 1e5, 3e5};  // Pa
     const std::vector<double> viscosities{0.0, 1.0, 10.26, 100.0};   // Pa s

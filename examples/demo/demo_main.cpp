@@ -158,7 +158,7 @@ int main(int argc, char** argv) {
     ImplicitEulerIntegrator<double>::Options io;
     io.tolerance = 1e-3;
     sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
-    collision::ContactSolver<double> contacts(sim.model());
+    collision::ContactSolver<double> contacts(sim.model(), sim.forces());
     const double shaft_r = 0.0025, half = 0.02;
     collision::Instrument<double> tool;
     tool.name = "probe";

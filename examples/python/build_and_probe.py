@@ -48,14 +48,12 @@ def main():
     print(f"built {tissue} in {build_s:.1f} s")
 
     sim = fsm.Simulation(tissue.spheres, gravity=(0, 0, -9.81) if args.gravity else (0, 0, 0))
-    # The contact solver uses the simulation's own model; its forces go into the simulation's
-    # external-force array in place (sim.external_forces is a view, compute() adds to it).
-    solver = fsm.ContactSolver(sim, fsm.ContactOptions(time_step=args.dt))
+    # The contact solver hands its contacts to the simulation's force model each step, and implicit
+    # Euler takes their stiffness into its solve (solver.step = compute, sim.step, collect).
+    solver = fsm.ContactSolver(sim)
 
     def step():
-        sim.external_forces[:] = 0.0
-        solver.compute(sim)
-        return sim.step(args.dt)
+        return solver.step(sim, args.dt)
 
     if args.gravity:  # settle under gravity before probing
         for _ in range(round((0.2 if args.quick else 1.0) / args.dt)):
@@ -65,7 +63,9 @@ def main():
     body = tissue.part("body")
     x = sim.model.positions.copy()  # a copy: sim.model.positions is a live view
     top = body.first_node + int(np.argmax(x[body.nodes, 2]))
-    touch = x[top] + (0.0, 0.0, sim.model.radii[top] + args.probe_radius)
+    # The body is a tetrahedral filling: its vertices are its surface and meet instruments at
+    # their centres (ContactOptions.tetrahedral_surface).
+    touch = x[top] + (0.0, 0.0, args.probe_radius)
     probe = solver.add_instrument(fsm.Instrument(fsm.SphereShape(args.probe_radius),
                                                  fsm.Pose(touch), name="probe", friction=0.2))
     print(f"probe: ball of {args.probe_radius * 1e3:g} mm over sphere {top} at "

@@ -333,7 +333,7 @@ int run(const Args& args) {
   ImplicitEulerIntegrator<double>::Options io;
   io.tolerance = 1e-3;  // as fsm-demo: < 0.1 um from 1e-6 at a third of the CG iterations
   sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
-  collision::ContactSolver<double> contacts(sim.model());
+  collision::ContactSolver<double> contacts(sim.model(), sim.forces());
   collision::Instrument<double> tool;
   tool.name = "probe";
   tool.shape = collision::CapsuleShape<double>{kShaftRadius, kHalfLength};

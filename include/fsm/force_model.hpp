@@ -7,6 +7,7 @@
 #include <Eigen/SparseCore>
 #include <vector>
 
+#include "fsm/detail/continuum.hpp"
 #include "fsm/sphere_model.hpp"
 #include "fsm/types.hpp"
 #include "fsm/voigt_link.hpp"
@@ -26,10 +27,50 @@ enum class JacobianForm {
   definite,
 };
 
-/// @brief The force field of a SphereModel: Voigt links, gravity and per-node external forces.
+/// @brief A penalty contact on one sphere, integrated by ForceModel (implicitly in implicit Euler).
+///
+/// collision::ContactSolver fills these (ForceModel::contacts()) from the instruments and parts;
+/// they act through the step as the tangent plane at detection: the penetration is
+/// \f$\delta(\mathbf{x}) = \delta_0 - \mathbf{n}\cdot(\Delta\mathbf{x}_i - \Delta\mathbf{x}_j)\f$
+/// (displacements since detection; \f$j\f$ the other sphere of a part contact), the normal force
+/// \f$f_n = \max(0, k\delta - c\,\mathbf{n}\cdot\mathbf{v}_{rel})\f$ never pulls, and regularised
+/// Coulomb friction opposes the slip. An instrument moving with `surface_velocity` deepens the
+/// contact by \f$h\,\mathbf{n}\cdot\mathbf{v}_s\f$ over a step, which implicit Euler takes into
+/// its solve (docs/physics.md section 8).
+template <typename Scalar>
+struct PenaltyContact {
+  Index node{-1};        ///< The sphere pushed.
+  Index other{-1};       ///< The other sphere of a part contact (pushed by -force), or -1.
+  Index instrument{-1};  ///< The instrument, or -1 for a part contact.
+  Vector3<Scalar> normal{Vector3<Scalar>::UnitZ()};  ///< Unit: the direction `node` is pushed.
+  Vector3<Scalar> point{Vector3<Scalar>::Zero()};    ///< Contact point (m), for torques.
+  Scalar depth{0};                                   ///< Penetration at detection (m).
+  Scalar stiffness{0};                               ///< k (N/m).
+  Scalar damping{0};                                 ///< c (N s/m), along the normal.
+  Scalar friction{0};                                ///< Coulomb coefficient.
+  Scalar friction_speed{Scalar(1e-3)};               ///< Regularisation speed (m/s).
+  Vector3<Scalar> surface_velocity{Vector3<Scalar>::Zero()};  ///< Instrument surface (m/s).
+  Vector3<Scalar> node_start{Vector3<Scalar>::Zero()};   ///< `node`'s position at detection.
+  Vector3<Scalar> other_start{Vector3<Scalar>::Zero()};  ///< `other`'s position at detection.
+  /// Force on `node` (N) at the end of the last accepted step (ForceModel::finish_contacts), or
+  /// at detection.
+  Vector3<Scalar> force{Vector3<Scalar>::Zero()};
+  /// Force on `node` (N) at the start of the step (ForceModel::start_contacts).
+  Vector3<Scalar> start_force{Vector3<Scalar>::Zero()};
+  /// Whether the last implicit step took this contact into its solve (it penetrated at the start).
+  bool in_solve{false};
+  // The implicit step's linearisation (ForceModel::prepare_implicit).
+  Scalar normal_block{0}, tangent_block{0};
+};
+
+/// @brief The force field of a SphereModel: Voigt links, the continuum law's elements, penalty
+/// contacts, gravity and per-node external forces.
 ///
 /// \f$\mathbf{F}(\mathbf{x},\mathbf{v}) = \sum_{\text{links}} \mathbf{F}_{\text{link}}
-/// + \mathbf{M}\mathbf{g} + \mathbf{F}_{\text{ext}}\f$. Holds what the force evaluation needs
+/// + \sum_{\text{elements}} \mathbf{F}_{\text{element}}
+/// + \mathbf{M}\mathbf{g} + \mathbf{F}_{\text{ext}}\f$. Each region's ForceLaw decides which: a
+/// region with the continuum law contributes its tetrahedra (docs/physics.md section 11) and its
+/// links carry no force. Holds what the force evaluation needs
 /// besides the model: options, the external forces, inverse masses (0 for fixed nodes) and
 /// per-thread buffers. Everything is sized by refresh(); evaluate() and the other per-step
 /// functions allocate nothing and never throw.
@@ -77,6 +118,51 @@ class ForceModel {
   /// @brief Sets every external force to zero.
   void clear_external_forces() noexcept;
 
+  /// @name Penalty contacts (filled by collision::ContactSolver, integrated with the step)
+  /// @{
+  /// @brief Makes room for `capacity` contacts (allocates; ContactSolver calls it when sized).
+  void reserve_contacts(Index capacity);
+  [[nodiscard]] Index contact_capacity() const noexcept { return Index(m_contacts.size()); }
+  /// @brief Forgets every contact (and resets the contact time).
+  void clear_contacts() noexcept {
+    m_num_contacts = 0;
+    m_contact_time = Scalar(0);
+    m_contacts_linearised = false;
+  }
+  /// @brief Adds a contact; false (nothing added) when the capacity is full.
+  bool add_contact(const PenaltyContact<Scalar>& contact) noexcept;
+  [[nodiscard]] Index num_contacts() const noexcept { return m_num_contacts; }
+  [[nodiscard]] const PenaltyContact<Scalar>* contacts() const noexcept { return m_contacts.data(); }
+  /// @brief Time (s) since the contacts were detected: an instrument contact's surface has moved
+  /// by this times its `surface_velocity` (Simulation advances it through each step).
+  void set_contact_time(Scalar t) noexcept { m_contact_time = t; }
+  [[nodiscard]] Scalar contact_time() const noexcept { return m_contact_time; }
+  /// @brief The contacts' forces at the model's state and the contact time (the step's start),
+  /// into each contact's `start_force`; clears `in_solve`. Simulation::step calls it.
+  void start_contacts(const SphereModel<Scalar>& model) noexcept;
+  /// @brief The contacts' forces at the model's state and the contact time, into each contact's
+  /// `force`.
+  void finish_contacts(const SphereModel<Scalar>& model) noexcept;
+  /// @brief Caps each contact's stiffness for an explicit step of length h: at most
+  /// \f$m/(2h^2)\f$ (m the sphere's mass, the reduced mass for a part contact), the damping scaled
+  /// to keep its ratio. An explicit integrator cannot take a contact stiffer than its step allows;
+  /// implicit Euler needs no cap. Returns how many contacts were softened.
+  Index limit_contact_stiffness(const SphereModel<Scalar>& model, Scalar h) noexcept;
+  /// @brief For the assembled implicit solvers: adds to `rhs` (`3|V|`, holding
+  /// \f$h\mathbf{F} + h^2\mathbf{K}\mathbf{v}\f$ with evaluate()'s clamped contact forces), for
+  /// each contact that penetrates at this state, \f$h\f$ times its linear law minus its clamped
+  /// force and \f$h^2 k\,\mathbf{n}(\mathbf{n}\cdot\mathbf{v}_s)\f$ (the instrument's motion
+  /// over the step), as prepare_implicit() does for the matrix-free solve; marks them `in_solve`.
+  void add_contact_linearisation(const SphereModel<Scalar>& model, Scalar h,
+                                 Scalar* rhs) noexcept;
+  /// @brief The work (J) the contacts did on the spheres' displacements from `x_before` to the
+  /// model's positions over the last step: after an implicit step, the end-of-step force of the
+  /// linear law of each contact the solve took (none for the others); after an explicit one, the
+  /// mean of start_force and force (finish_contacts()).
+  [[nodiscard]] Scalar contact_work(const SphereModel<Scalar>& model,
+                                    const ConstPositionsRef& x_before) const noexcept;
+  /// @}
+
   /// @name Sleeping
   /// An asleep node is held still like a fixed one (inverse mass 0), and links none of whose ends
   /// can move are skipped by the force loops. Simulation's sleep policy drives this.
@@ -104,7 +190,8 @@ class ForceModel {
   void evaluate(const SphereModel<Scalar>& model, const ConstPositionsRef& x,
                 const ConstPositionsRef& v, PositionsRef f) noexcept;
 
-  /// @brief Elastic energy (J) of all links at positions x: \f$\sum_l \int f_e\,de\f$.
+  /// @brief Elastic energy (J) at positions x: the links' \f$\sum_l \int f_e\,de\f$ and the
+  /// elements' neo-Hookean energy.
   [[nodiscard]] Scalar elastic_energy(const SphereModel<Scalar>& model,
                                       const ConstPositionsRef& x) const noexcept;
   /// @brief Kinetic energy (J): \f$\frac12\sum_i m_i|\mathbf{v}_i|^2\f$.
@@ -137,11 +224,31 @@ class ForceModel {
   /// @name Assembled Jacobians (allocate; for analysis and the direct solvers)
   /// @{
   /// @brief \f$\partial\mathbf{F}/\partial\mathbf{x}\f$ (N/m), `3|V| x 3|V|`, at the model's state.
+  /// The continuum elements' part is their exact Jacobian for `exact` (by central differences of
+  /// the exact forces, relative accuracy about 1e-7) and the positive semi-definite tangent the
+  /// implicit solve uses otherwise.
   [[nodiscard]] SparseMatrix stiffness_matrix(const SphereModel<Scalar>& model,
                                               JacobianForm form = JacobianForm::exact) const;
   /// @brief \f$\partial\mathbf{F}/\partial\mathbf{v}\f$ (N s/m), `3|V| x 3|V|`, drag included.
   [[nodiscard]] SparseMatrix damping_matrix(const SphereModel<Scalar>& model) const;
   /// @}
+
+  /// @brief A conservative stiffness (N/m) of each node against its own displacement: the
+  /// Gershgorin row sum of the links' and elements' rest stiffness, `|V|` (for contact stiffness).
+  [[nodiscard]] std::vector<Scalar> node_stiffness(const SphereModel<Scalar>& model) const;
+
+  /// @brief Continuum elements with \f$J \le 0\f$ (inverted) at x.
+  [[nodiscard]] Index inverted_elements(const ConstPositionsRef& x) const noexcept {
+    return m_continuum.inverted(x.data());
+  }
+  /// @brief About E V summed over the continuum elements (J per unit strain squared).
+  [[nodiscard]] Scalar element_energy_scale() const noexcept { return m_continuum.energy_scale(); }
+  /// @brief Number of continuum elements (tetrahedra of continuum regions).
+  [[nodiscard]] Index num_elements() const noexcept { return m_continuum.num_elements(); }
+  /// @brief 1 for a link that carries force (0 inside a continuum region), `|L|`.
+  [[nodiscard]] const std::vector<std::uint8_t>& force_links() const noexcept {
+    return m_force_link;
+  }
 
  private:
   void resize_scratch();
@@ -156,6 +263,14 @@ class ForceModel {
   std::vector<Scalar> m_external;
   ScalarArray<Scalar> m_inverse_mass;
   std::vector<std::vector<Scalar>> m_scratch;
+  std::vector<PenaltyContact<Scalar>> m_contacts;
+  Index m_num_contacts{0};
+  Scalar m_contact_time{0};
+  bool m_contacts_linearised{false};  // the last step was implicit (contact_work's accounting)
+  std::vector<std::uint8_t> m_force_link;               // per link: carries force
+  std::vector<std::pair<Index, Index>> m_force_ranges;  // force links, whatever moves
+  detail::ContinuumTerm<Scalar> m_continuum;
+  std::vector<Scalar> m_element_force;  // |V| x 3 scratch of prepare_implicit
 };
 
 extern template class ForceModel<float>;

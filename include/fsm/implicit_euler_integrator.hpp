@@ -54,6 +54,7 @@ class ImplicitEulerIntegrator final : public Integrator<Scalar> {
     return std::make_unique<ImplicitEulerIntegrator>(*this);
   }
   [[nodiscard]] int order() const noexcept override { return 1; }
+  [[nodiscard]] bool implicit() const noexcept override { return true; }
   [[nodiscard]] const Options& options() const noexcept { return m_options; }
   void set_options(const Options& options) { m_options = options; }
 

@@ -35,6 +35,8 @@ class Integrator {
   [[nodiscard]] virtual std::string_view name() const noexcept = 0;
   /// @brief Global order of accuracy.
   [[nodiscard]] virtual int order() const noexcept = 0;
+  /// @brief True when the step solves for the end-of-step forces (stiff contacts need no cap).
+  [[nodiscard]] virtual bool implicit() const noexcept { return false; }
   /// @brief Sizes the workspace for `model`. Call again when the model's size changes.
   virtual void prepare(const SphereModel<Scalar>& model) = 0;
   /// @brief Advances by dt (s). Requires prepare() for this model's size; returns ok = false

@@ -15,6 +15,12 @@ namespace fsm {
 
 /// @brief A homogeneous, isotropic Voigt material (docs/physics.md section 10.1, eq. 2):
 /// \f$\sigma = E\varepsilon + \eta\dot\varepsilon\f$, optionally bilinear in \f$E\f$.
+///
+/// The link law (the paper's) uses E, eta and the bilinear pair; its network has Poisson's ratio
+/// 1/4 whatever `poisson_ratio` says. The continuum law (docs/physics.md section 11) uses E and
+/// `poisson_ratio` as the small-strain constants of its neo-Hookean energy, eta as a Voigt
+/// viscosity on the strain rate (retardation time eta / E), and the bilinear pair as a stiffening
+/// of its deviatoric energy.
 template <typename Scalar>
 struct Material {
   Scalar density{1000};      ///< \f$\rho\f$ (kg/m^3), > 0.
@@ -25,12 +31,22 @@ struct Material {
   /// \f$\varepsilon_s\f$: |strain| where \f$E\f$ gives way to \f$E_L\f$; used when
   /// large_strain_modulus > 0.
   Scalar switch_strain{0};
+  /// \f$\nu\f$, in (-1, 0.5): Poisson's ratio of the continuum law (soft tissue: 0.45-0.49).
+  Scalar poisson_ratio{Scalar(0.45)};
 
   /// @brief True when the material has a modulus switch.
   [[nodiscard]] bool is_bilinear() const noexcept { return large_strain_modulus > Scalar(0); }
 
   /// @brief Retardation time \f$\tau = \eta / E\f$ (s) of the Voigt element.
   [[nodiscard]] Scalar retardation_time() const noexcept { return viscosity / youngs_modulus; }
+  /// @brief Shear modulus \f$\mu = E / (2(1+\nu))\f$ (Pa) of the continuum law.
+  [[nodiscard]] Scalar shear_modulus() const noexcept {
+    return youngs_modulus / (Scalar(2) * (Scalar(1) + poisson_ratio));
+  }
+  /// @brief Bulk modulus \f$K = E / (3(1-2\nu))\f$ (Pa) of the continuum law.
+  [[nodiscard]] Scalar bulk_modulus() const noexcept {
+    return youngs_modulus / (Scalar(3) * (Scalar(1) - Scalar(2) * poisson_ratio));
+  }
 
   /// @brief Throws fsm::Error naming `what` (e.g. "region 'body'") if a value is out of range.
   void validate(const std::string& what) const {
@@ -47,6 +63,8 @@ struct Material {
       bad("large_strain_modulus", large_strain_modulus, "Pa must be non-negative (0 = linear)");
     if (is_bilinear() && !(std::isfinite(switch_strain) && switch_strain > 0))
       bad("switch_strain", switch_strain, "must be positive for a bilinear material");
+    if (!(poisson_ratio > Scalar(-1) && poisson_ratio < Scalar(0.5)))
+      bad("poisson_ratio", poisson_ratio, "must be in (-1, 0.5)");
   }
 };
 

@@ -38,6 +38,13 @@ struct StepReport {
   int solver_iterations{0};  ///< Summed linear-solver iterations (implicit schemes).
   /// Kinetic + elastic + gravitational energy after the step (J); NaN when not checked.
   Scalar energy{std::numeric_limits<Scalar>::quiet_NaN()};
+  /// Continuum elements inverted (\f$J \le 0\f$) after an accepted step (0 without the law). The
+  /// law's energy stays finite through inversion and pushes the element back; a step that cannot
+  /// is rolled back as diverged.
+  Index inverted_elements{0};
+  /// Penalty contacts softened to the explicit step's limit (ForceModel::limit_contact_stiffness;
+  /// always 0 with implicit Euler).
+  Index softened_contacts{0};
   /// @brief True if the model advanced by dt.
   [[nodiscard]] bool advanced() const noexcept {
     return status == StepStatus::ok || status == StepStatus::recovered;
@@ -61,8 +68,9 @@ struct EnergyReport {
 /// @brief When a step counts as diverged, and what to do then.
 template <typename Scalar>
 struct DivergencePolicy {
-  /// Check the energy after each step (one extra pass over the links); non-finite states are
-  /// always caught.
+  /// Check the energy after each step (one extra pass over the links and elements); non-finite
+  /// states are always caught. The work of external forces and of contacts (ForceModel's penalty
+  /// contacts, at their end-of-step forces) counts into the budget.
   bool check_energy{true};
   /// A step diverges when its energy exceeds budget + tolerance * |budget| + floor.
   Scalar energy_tolerance{Scalar(1)};
@@ -181,6 +189,7 @@ class Simulation {
   void restore_state() noexcept;
   [[nodiscard]] bool state_matches_saved() const noexcept;
   bool wake_regions() noexcept;
+  void update_load() noexcept;
   void sleep_regions(Scalar dt) noexcept;
   void set_region_asleep(Index region, bool asleep) noexcept;
 
@@ -195,7 +204,8 @@ class Simulation {
   std::vector<Index> m_region_start, m_region_nodes, m_border_start, m_border_nodes;
   std::vector<std::uint8_t> m_region_asleep, m_node_asleep;
   std::vector<Scalar> m_quiet_time;
-  Positions<Scalar> m_sleep_force;  // external forces when each node's region fell asleep
+  Positions<Scalar> m_sleep_force;  // load (external + contact) when its region fell asleep
+  Positions<Scalar> m_load;         // external forces plus the penalty contacts' forces, per node
   Positions<Scalar> m_saved_x, m_saved_v;
   Scalar m_energy_reference{0};
   Scalar m_external_work{0};

@@ -13,11 +13,28 @@
 
 namespace fsm {
 
+/// @brief How a region's spheres resist deformation (docs/physics.md sections 1 and 11).
+enum class ForceLaw : std::uint8_t {
+  /// The paper's Voigt links between spheres (Van Gelder's rule on tetrahedral parts, rods on
+  /// chains). Cheapest; Poisson's ratio 1/4 whatever the material says.
+  links = 0,
+  /// Neo-Hookean elasticity on the region's tetrahedra (deviatoric per element, volumetric on
+  /// nodal-averaged J), with Poisson's ratio and Voigt viscosity from the material. The region's
+  /// links stay in the model (contacts, skinning) but carry no force.
+  continuum = 1,
+};
+
+/// @brief Name of a ForceLaw ("links", "continuum").
+[[nodiscard]] inline const char* to_string(ForceLaw law) noexcept {
+  return law == ForceLaw::continuum ? "continuum" : "links";
+}
+
 /// @brief A named part of a model with its own material (the uterine body, an ovary, ...).
 template <typename Scalar>
 struct Region {
   std::string name;           ///< Unique, non-empty.
   Material<Scalar> material;  ///< Its Voigt material.
+  ForceLaw law{ForceLaw::links};  ///< How its spheres resist deformation.
 };
 
 /// @brief Spheres (nodes) joined by Voigt links, grouped into regions; some nodes fixed.
@@ -34,6 +51,9 @@ struct Region {
 /// density: add_tetrahedral_part() lumps \f$\rho\sum_{T\ni i} V_T/4\f$ onto each vertex (total
 /// mass exact on any mesh); distribute_region_mass() gives every node of a region the same share
 /// \f$\rho V/N\f$ (the paper's homogeneous-region rule, docs/physics.md section 10.1).
+///
+/// - per tetrahedron (`|T| x 4` node indices): the elements of tetrahedral fillings, positively
+///   oriented at rest, each within one region; the continuum law acts on them.
 ///
 /// Every add_* call checks its input and throws fsm::Error naming the element and the reason.
 /// The arrays are also writable in place; validate() re-checks everything, and Simulation calls
@@ -54,7 +74,14 @@ class SphereModel {
 
   /// @brief Adds a region. @return its index. Throws if the name is empty or taken or the
   /// material is invalid.
-  Index add_region(std::string name, const Material<Scalar>& material);
+  Index add_region(std::string name, const Material<Scalar>& material,
+                   ForceLaw law = ForceLaw::links);
+  /// @brief Sets a region's force law (a region with the continuum law needs tetrahedra: checked
+  /// by validate(), so by Simulation). Throws for a region index out of range.
+  void set_region_law(Index region, ForceLaw law);
+  /// @brief Replaces a region's material (checked as add_region checks it). The links keep the
+  /// constants they were given: rebuild them (tetrahedral_link) to follow a new modulus.
+  void set_region_material(Index region, const Material<Scalar>& material);
 
   /// @brief Adds a node at rest (position = rest position, velocity 0).
   /// @param rest_position (m); @param radius (m), > 0; @param mass (kg), > 0;
@@ -68,6 +95,11 @@ class SphereModel {
   /// @param stiffness \f$k_s\f$ (N/m); @param damping \f$k_d\f$ (N s/m).
   Index add_link(Index i, Index j, Scalar stiffness, Scalar damping);
 
+  /// @brief Adds a tetrahedron of four distinct existing nodes of one region, positively oriented
+  /// at rest (\f$(x_b - x_a)\cdot((x_c - x_a)\times(x_d - x_a)) > 0\f$, not degenerate).
+  /// @return its index.
+  Index add_tetrahedron(Index a, Index b, Index c, Index d);
+
   /// @brief Marks a node fixed (it never moves) or free. A fixed node's velocity is set to 0.
   void set_fixed(Index node, bool fixed = true);
 
@@ -79,6 +111,9 @@ class SphereModel {
     return static_cast<Index>(m_rest_length.size());
   }
   [[nodiscard]] Index num_regions() const noexcept { return static_cast<Index>(m_regions.size()); }
+  [[nodiscard]] Index num_tetrahedra() const noexcept {
+    return static_cast<Index>(m_tetrahedron.size() / 4);
+  }
   [[nodiscard]] Index num_fixed() const noexcept;
 
   /// @name Node arrays (|V| rows)
@@ -120,6 +155,17 @@ class SphereModel {
   ConstScalarMap switch_strain() const noexcept { return {m_switch_strain.data(), num_links()}; }
   /// @}
 
+  /// @name Tetrahedra (|T| x 4 node indices)
+  /// @{
+  using TetrahedronMap = Eigen::Map<TetrahedronArray>;
+  using ConstTetrahedronMap = Eigen::Map<const TetrahedronArray>;
+  ConstTetrahedronMap tetrahedra() const noexcept {
+    return {m_tetrahedron.data(), num_tetrahedra(), 4};
+  }
+  /// @brief True if any region uses the continuum law.
+  [[nodiscard]] bool has_continuum() const noexcept;
+  /// @}
+
   /// @brief Link l's force law gathered from the link arrays.
   [[nodiscard]] VoigtLink<Scalar> link(Index l) const;
   /// @brief Overwrites link l's force law (checked like add_link).
@@ -158,6 +204,7 @@ class SphereModel {
   [[nodiscard]] std::string describe_link(Index l) const;
   void check_node(Index i) const;
   void check_link(Index l) const;
+  void check_tetrahedron(Index t) const;
 
   std::vector<Region<Scalar>> m_regions;
   std::vector<Scalar> m_position, m_velocity, m_rest_position;  // 3 per node
@@ -166,6 +213,7 @@ class SphereModel {
   std::vector<std::uint8_t> m_fixed;
   std::vector<Index> m_link;  // 2 per link
   std::vector<Scalar> m_rest_length, m_stiffness, m_damping, m_large_stiffness, m_switch_strain;
+  std::vector<Index> m_tetrahedron;  // 4 per tetrahedron
 };
 
 extern template class SphereModel<float>;

@@ -11,6 +11,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "fsm/detail/continuum.hpp"
 #include "fsm/sphere_model.hpp"
 
 namespace fsm {
@@ -48,7 +49,10 @@ struct SpectralBound {
 /// with \f$k_l\f$ the larger of a bilinear link's two stiffnesses. The same with \f$k_d\f$ bounds
 /// the damping rate (blocks \f$k_d\mathbf{n}\mathbf{n}^T\f$ along the link, \f$k_d\mathbf{I}\f$ for
 /// full relative-velocity damping). Exact for two equal spheres; the geometric stiffness of
-/// pre-stressed links is not included.
+/// pre-stressed links is not included. Links inside continuum regions carry no force and are left
+/// out; a continuum region's elements add, per node, the Gershgorin row sum of their rest tangent
+/// (edge springs and volumetric term, ContinuumTerm::add_node_stiffness) over its mass, and the
+/// same times the region's retardation time for damping.
 template <typename Scalar>
 [[nodiscard]] SpectralBound<Scalar> spectral_bound(
     const SphereModel<Scalar>& model, DampingModel damping = DampingModel::along_link) {
@@ -67,8 +71,10 @@ template <typename Scalar>
   const auto large = model.large_stiffness();
   const auto damp = model.damping();
   double tau = std::numeric_limits<double>::infinity();
+  const auto region = model.node_regions();
   for (Index l = 0; l < model.num_links(); ++l) {
     const Index i = links(l, 0), j = links(l, 1);
+    if (region[i] == region[j] && model.region(region[i]).law == ForceLaw::continuum) continue;
     const bool bilinear = std::isfinite(double(model.switch_strain()[l]));
     const double k = bilinear ? std::max(double(stiff[l]), double(large[l])) : double(stiff[l]);
     const double c = double(damp[l]);
@@ -103,16 +109,28 @@ template <typename Scalar>
     es.computeDirect(S, Eigen::EigenvaluesOnly);
     return es.eigenvalues().maxCoeff();
   };
+  // The continuum elements: a Gershgorin row-sum bound per node.
+  std::vector<Scalar> element_k;
+  detail::ContinuumTerm<Scalar> elements;
+  if (model.has_continuum()) {
+    elements.refresh(model);
+    element_k.assign(std::size_t(n), Scalar(0));
+    elements.add_node_stiffness(model, element_k.data());
+    for (const Region<Scalar>& r : model.regions())
+      if (r.law == ForceLaw::continuum) tau = std::min(tau, double(r.material.retardation_time()));
+  }
   double w2 = 0, c = 0;
   for (Index i = 0; i < n; ++i) {
     if (fixed[i]) continue;
-    w2 = std::max(w2, lmax(ks.row(i)) / double(mass[i]) + ks_off[i]);
-    c = std::max(c, lmax(kd.row(i)) / double(mass[i]) + kd_off[i]);
+    const double ke = element_k.empty() ? 0.0 : double(element_k[std::size_t(i)]);
+    const double ce = element_k.empty() ? 0.0 : double(elements.node_tau(i)) * ke;
+    w2 = std::max(w2, lmax(ks.row(i)) / double(mass[i]) + ks_off[i] + ke / double(mass[i]));
+    c = std::max(c, lmax(kd.row(i)) / double(mass[i]) + kd_off[i] + ce / double(mass[i]));
   }
   SpectralBound<Scalar> b;
   b.omega_max = Scalar(std::sqrt(w2));
   b.damping_max = Scalar(c);
-  b.retardation_min = model.num_links() > 0 ? Scalar(tau) : Scalar(0);
+  b.retardation_min = std::isfinite(tau) ? Scalar(tau) : Scalar(0);
   return b;
 }
 

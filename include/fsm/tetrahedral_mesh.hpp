@@ -43,6 +43,8 @@ struct PartRange {
   Index num_nodes{0};
   Index first_link{0};
   Index num_links{0};
+  Index first_tetrahedron{0};
+  Index num_tetrahedra{0};
 };
 
 /// @brief Adds a tetrahedral filling to `model` as nodes of `region`.
@@ -51,8 +53,9 @@ struct PartRange {
 /// region's material by tetrahedral_link() (Van Gelder's rule: \f$k = E\sum_{T\ni e}V_T/l_e^2\f$);
 /// lumped masses \f$m_i = \rho\sum_{T\ni i}V_T/4\f$, so the part's mass is exactly
 /// \f$\rho V\f$. Links are ordered by their first node, which keeps the force loop's memory access
-/// local when the vertices are spatially ordered. Throws fsm::Error for a bad mesh or radius,
-/// leaving the model unchanged.
+/// local when the vertices are spatially ordered. The tetrahedra are added too, positively
+/// oriented (the continuum law acts on them). Throws fsm::Error for a bad mesh or radius, leaving
+/// the model unchanged.
 template <typename Scalar>
 PartRange add_tetrahedral_part(SphereModel<Scalar>& model, const TetrahedralMesh<Scalar>& mesh,
                                Index region, Scalar radius);

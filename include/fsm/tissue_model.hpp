@@ -47,7 +47,7 @@ struct Part {
   Index first_node{0}, num_nodes{0};
   Index first_link{0}, num_links{0};  ///< Links inside the part (attachments are listed apart).
   Index surface{-1};                  ///< Index into Skin::surfaces, or -1.
-  /// Its rows of TissueModel::tetrahedra (tetrahedral parts; none for the others, and none in a
+  /// Its rows of spheres.tetrahedra() (tetrahedral parts; none for the others, and none in a
   /// model file of format version 1).
   Index first_tetrahedron{0}, num_tetrahedra{0};
 };
@@ -61,16 +61,11 @@ struct TissueModel {
   Index first_attachment_link{0};  ///< Attachment links between parts are the last links.
   Index num_attachment_links{0};
   Skin<Scalar> skin;
-  /// The tetrahedra of the tetrahedral parts' fillings, `|T| x 4` node indices into `spheres`,
-  /// each positively oriented at rest and inside its part's node range (Part::first_tetrahedron).
-  /// A tetrahedral part's links are these tetrahedra's edges; force laws that act on elements use
-  /// the tetrahedra themselves.
-  TetrahedronArray tetrahedra;
   std::string report_json;  ///< The builder's report (JSON text), kept for provenance.
 
   /// @brief Part `p`'s tetrahedra (`|T_p| x 4` node indices into `spheres`).
   [[nodiscard]] auto part_tetrahedra(const Part& p) const {
-    return tetrahedra.middleRows(p.first_tetrahedron, p.num_tetrahedra);
+    return spheres.tetrahedra().middleRows(p.first_tetrahedron, p.num_tetrahedra);
   }
 
   /// @brief The part of that name; fsm::Error listing the names otherwise.
@@ -91,7 +86,8 @@ struct TissueModel {
     const auto inside = [](Index first, Index count, Index size) {
       return first >= 0 && count >= 0 && std::int64_t(first) + std::int64_t(count) <= size;
     };
-    const Index num_tets = Index(tetrahedra.rows());
+    const Index num_tets = spheres.num_tetrahedra();
+    const auto tetrahedra = spheres.tetrahedra();
     for (const Part& p : parts) {
       const std::string what = "part '" + p.name + "'";
       if (p.region < 0 || p.region >= spheres.num_regions()) throw Error("", what, "bad region");
@@ -120,34 +116,8 @@ struct TissueModel {
                             std::to_string(p.first_node) + ", " +
                             std::to_string(std::int64_t(p.first_node) + p.num_nodes) + ")");
         }
-        const auto x = spheres.rest_positions();
-        const Vector3<Scalar> a = x.row(tetrahedra(t, 0)).transpose();
-        const Vector3<Scalar> e1 = x.row(tetrahedra(t, 1)).transpose() - a;
-        const Vector3<Scalar> e2 = x.row(tetrahedra(t, 2)).transpose() - a;
-        const Vector3<Scalar> e3 = x.row(tetrahedra(t, 3)).transpose() - a;
-        const Scalar six_v = e1.dot(e2.cross(e3));
-        const Scalar edge = std::max({e1.norm(), e2.norm(), e3.norm()});
-        // As TetrahedralMesh::validate: |V| at least 1e-12 of the (longest) edge cubed.
-        if (!(six_v > Scalar(6e-12) * edge * edge * edge))
-          throw Error(
-              "", tet,
-              "is inverted or degenerate at rest (6V = " + std::to_string(double(six_v)) + " m^3)");
       }
     }
-    // The parts' tetrahedra follow one another in part order and cover the array exactly.
-    std::int64_t next = 0;
-    for (const Part& p : parts) {
-      if (p.num_tetrahedra == 0) continue;
-      if (p.first_tetrahedron != next)
-        throw Error("", "part '" + p.name + "'",
-                    "its tetrahedra start at " + std::to_string(p.first_tetrahedron) +
-                        ", not where the previous part's end (" + std::to_string(next) + ")");
-      next += p.num_tetrahedra;
-    }
-    if (next != num_tets)
-      throw Error(
-          "", "tetrahedra",
-          std::to_string(num_tets) + " tetrahedra, but the parts claim " + std::to_string(next));
     if (!inside(first_attachment_link, num_attachment_links, spheres.num_links()))
       throw Error("", "attachments", "link range outside the model");
     if (skin.num_vertices() > 0) skin.validate(spheres.num_nodes());

@@ -27,6 +27,7 @@ from ._fsm import (  # noqa: F401
     DeviceState,
     EnergyReport,
     Error,
+    ForceLaw,
     HapticDevice,
     HeunIntegrator,
     ImplicitEulerIntegrator,

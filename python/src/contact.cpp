@@ -117,43 +117,48 @@ instrument; what a haptic device renders (its negative is what the instrument ap
 
   py::class_<Options>(m, "ContactOptions", R"(How contacts respond (SI units).
 
-ContactOptions(stiffness_scale=2, damping_ratio=0.5, friction_speed=1e-3, part_contact=True,
-               self_contact=False, part_friction=0, max_contacts=4096, spatial_hash=True,
-               verlet_skin=0.002, time_step=1e-3)
+ContactOptions(stiffness_ratio=100, damping_ratio=0.5, friction_speed=1e-3,
+               tetrahedral_surface=True, part_contact=True, self_contact=False, part_friction=0,
+               max_contacts=4096, spatial_hash=True, verlet_skin=0.002)
 
-stiffness_scale s: penalty stiffness k = s E r (N/m) from the sphere's region modulus E (Pa) and
-radius r (m). damping_ratio zeta: contact damping c = 2 zeta sqrt(k m). friction_speed (m/s):
-regularisation of Coulomb friction. part_contact: spheres of different regions collide;
-self_contact: spheres of one region far apart at rest collide (folding). part_friction: Coulomb
-coefficient between parts. max_contacts: length of the contact list. spatial_hash: False tests
-every sphere (the reference). verlet_skin (m): slack of the part-contact pair list. time_step (s):
-the step the forces will be applied over; it caps each sphere's contact stiffness so the explicit
-contact force stays stable (0 removes the cap). Validated when a ContactSolver is made.)")
-      .def(
-          py::init([](Scalar stiffness_scale, Scalar damping_ratio, Scalar friction_speed,
-                      bool part_contact, bool self_contact, Scalar part_friction,
-                      Index max_contacts, bool spatial_hash, Scalar verlet_skin, Scalar time_step) {
-            Options o;
-            o.stiffness_scale = stiffness_scale;
-            o.damping_ratio = damping_ratio;
-            o.friction_speed = friction_speed;
-            o.part_contact = part_contact;
-            o.self_contact = self_contact;
-            o.part_friction = part_friction;
-            o.max_contacts = max_contacts;
-            o.spatial_hash = spatial_hash;
-            o.verlet_skin = verlet_skin;
-            o.time_step = time_step;
-            return o;
-          }),
-          py::arg("stiffness_scale") = 2.0, py::arg("damping_ratio") = 0.5,
-          py::arg("friction_speed") = 1e-3, py::arg("part_contact") = true,
-          py::arg("self_contact") = false, py::arg("part_friction") = 0.0,
-          py::arg("max_contacts") = 4096, py::arg("spatial_hash") = true,
-          py::arg("verlet_skin") = 0.002, py::arg("time_step") = 1e-3)
-      .def_readwrite("stiffness_scale", &Options::stiffness_scale, "s in k = s E r")
+stiffness_ratio: penalty stiffness as a multiple of the sphere's own tissue stiffness (the row sum
+of its links' and elements' rest stiffness), so the penetration is a fixed small share of the
+deformation at any resolution. damping_ratio zeta: contact damping c = 2 zeta sqrt(k m).
+friction_speed (m/s): regularisation of Coulomb friction. tetrahedral_surface: vertices of
+tetrahedra (on the organ's surface) meet instruments at their centres, other spheres at their
+radius; False: every sphere at its radius (the paper's contact). part_contact: spheres of different
+regions collide; self_contact: spheres of one region far apart at rest collide (folding).
+part_friction: Coulomb coefficient between parts. max_contacts: length of the contact list.
+spatial_hash: False tests every sphere (the reference). verlet_skin (m): slack of the part-contact
+pair list. Validated when a ContactSolver is made.)")
+      .def(py::init([](Scalar stiffness_ratio, Scalar damping_ratio, Scalar friction_speed,
+                       bool tetrahedral_surface, bool part_contact, bool self_contact,
+                       Scalar part_friction, Index max_contacts, bool spatial_hash,
+                       Scalar verlet_skin) {
+             Options o;
+             o.stiffness_ratio = stiffness_ratio;
+             o.damping_ratio = damping_ratio;
+             o.friction_speed = friction_speed;
+             o.tetrahedral_surface = tetrahedral_surface;
+             o.part_contact = part_contact;
+             o.self_contact = self_contact;
+             o.part_friction = part_friction;
+             o.max_contacts = max_contacts;
+             o.spatial_hash = spatial_hash;
+             o.verlet_skin = verlet_skin;
+             return o;
+           }),
+           py::arg("stiffness_ratio") = 100.0, py::arg("damping_ratio") = 0.5,
+           py::arg("friction_speed") = 1e-3, py::arg("tetrahedral_surface") = true,
+           py::arg("part_contact") = true, py::arg("self_contact") = false,
+           py::arg("part_friction") = 0.0, py::arg("max_contacts") = 4096,
+           py::arg("spatial_hash") = true, py::arg("verlet_skin") = 0.002)
+      .def_readwrite("stiffness_ratio", &Options::stiffness_ratio,
+                     "contact stiffness / the sphere's tissue stiffness")
       .def_readwrite("damping_ratio", &Options::damping_ratio, "zeta in c = 2 zeta sqrt(k m)")
       .def_readwrite("friction_speed", &Options::friction_speed, "m/s")
+      .def_readwrite("tetrahedral_surface", &Options::tetrahedral_surface,
+                     "tetrahedra's vertices meet instruments at their centres")
       .def_readwrite("part_contact", &Options::part_contact, "spheres of different regions collide")
       .def_readwrite("self_contact", &Options::self_contact,
                      "spheres of one region far apart at rest collide (folding)")
@@ -162,8 +167,7 @@ contact force stays stable (0 removes the cap). Validated when a ContactSolver i
                      "length of the contact list (allocated once)")
       .def_readwrite("spatial_hash", &Options::spatial_hash,
                      "False tests every sphere (the reference the tests compare with)")
-      .def_readwrite("verlet_skin", &Options::verlet_skin, "m")
-      .def_readwrite("time_step", &Options::time_step, "s (0: no stiffness cap)");
+      .def_readwrite("verlet_skin", &Options::verlet_skin, "m");
 
   // ---- the solver ------------------------------------------------------------------------------
   py::class_<Solver>(m, "ContactSolver",
@@ -172,19 +176,18 @@ contact force stays stable (0 removes the cap). Validated when a ContactSolver i
 ContactSolver(model, options=ContactOptions())   # model: a SphereModel, e.g. sim.model
 ContactSolver(simulation, options=ContactOptions())
 
-Each step: set your own loads in sim.external_forces (contact forces are *added*), call
-solver.compute(sim) (or compute(sim.model, sim.external_forces)), then sim.step(dt). compute()
-finds instrument-sphere and part-part contacts (spatial hash, closed forms or GJK), writes the
-penalty + damping + friction forces into the force array in place, and records each
-instrument's wrench (minus the sum of what it applies), the contacts and work counters.
+Each step: solver.step(sim, dt), which is solver.compute(sim) (find the contacts, instrument-sphere
+and part-part, with a spatial hash and closed forms or GJK, and hand them to the simulation's
+force model as penalty contacts: implicit Euler takes their stiffness into its solve), then
+sim.step(dt), then solver.collect(sim) (their end-of-step forces into contacts and each
+instrument's wrench, minus the sum of what it applies). compute(model, forces) instead adds the
+forces at the current state to an array (analysis, or your own integrator).
 
-    solver = fsm.ContactSolver(sim.model)
+    solver = fsm.ContactSolver(sim)
     tip = solver.add_instrument(fsm.Instrument(fsm.SphereShape(0.002), fsm.Pose((0, 0, 0.01))))
     for _ in range(100):
         solver.instrument(tip).pose.position[2] -= 1e-5
-        sim.external_forces[:] = 0
-        solver.compute(sim)
-        sim.step(1e-3)
+        solver.step(sim, 1e-3)
     print(solver.wrench(tip).force)
 
 Raises fsm.Error for bad options or a bad model; the GIL is released inside compute() and
@@ -195,7 +198,7 @@ project().)")
            py::arg("model"), py::arg("options") = Options{},
            "Sizes the solver for a SphereModel (allocates).")
       .def(py::init([](Sim& sim, const Options& options) {
-             return std::make_unique<Solver>(sim.model(), options);
+             return std::make_unique<Solver>(sim.model(), sim.forces(), options);
            }),
            py::arg("simulation"), py::arg("options") = Options{},
            "Sizes the solver for a Simulation's model.")
@@ -249,14 +252,43 @@ silent copy is ever made) or a model of another size.)")
             bool sized = false;
             {
               py::gil_scoped_release release;
-              sized = s.compute(sim.model(), sim.external_forces());
+              sized = s.compute(sim.model(), sim.forces());
             }
             if (!sized) throw size_error(s, sim.model(), "simulation model");
             return s.num_contacts();
           },
           py::arg("simulation"),
-          "compute(sim.model, sim.external_forces): adds contact forces to the simulation's "
-          "external forces.")
+          R"(Finds contacts at the simulation's state and gives them to its force model (replacing
+its contacts) for the next sim.step(); contacts and wrenches hold the forces at the current state
+until collect(). Returns the number of contacts.)")
+      .def(
+          "collect",
+          [](Solver& s, const Sim& sim) {
+            if (!s.collect(sim.forces()))
+              throw Error("", "contacts",
+                          "collect() needs the simulation that compute(simulation) filled");
+            return s.num_contacts();
+          },
+          py::arg("simulation"),
+          "After sim.step(): the contacts' end-of-step forces into contacts and the wrenches.")
+      .def(
+          "step",
+          [](Solver& s, Sim& sim, Scalar dt) {
+            StepReport<Scalar> r;
+            bool sized = false;
+            {
+              py::gil_scoped_release release;
+              sized = s.compute(sim.model(), sim.forces());
+              if (sized) {
+                r = sim.step(dt);
+                s.collect(sim.forces());
+              }
+            }
+            if (!sized) throw size_error(s, sim.model(), "simulation model");
+            return r;
+          },
+          py::arg("simulation"), py::arg("dt"),
+          "compute(sim), sim.step(dt), collect(sim); returns the StepReport.")
       .def(
           "project",
           [](Solver& s, Model& model) {

@@ -9,15 +9,18 @@ void define_material(py::module_& m) {
   py::class_<M>(m, "Material", R"(A homogeneous Voigt material: sigma = E eps + eta d(eps)/dt.
 
 All values SI. A bilinear material switches from youngs_modulus to large_strain_modulus at
-|strain| = switch_strain (large_strain_modulus = 0 means linear).)")
+|strain| = switch_strain (large_strain_modulus = 0 means linear). poisson_ratio is used by the
+continuum law only (the link network has 1/4 whatever it says).)")
       .def(py::init([](Scalar density, Scalar youngs_modulus, Scalar viscosity,
-                       Scalar large_strain_modulus, Scalar switch_strain) {
-             M mat{density, youngs_modulus, viscosity, large_strain_modulus, switch_strain};
+                       Scalar large_strain_modulus, Scalar switch_strain, Scalar poisson_ratio) {
+             M mat{density,      youngs_modulus, viscosity, large_strain_modulus,
+                   switch_strain, poisson_ratio};
              mat.validate("Material");
              return mat;
            }),
            py::arg("density") = 1000.0, py::arg("youngs_modulus"), py::arg("viscosity") = 0.0,
            py::arg("large_strain_modulus") = 0.0, py::arg("switch_strain") = 0.0,
+           py::arg("poisson_ratio") = M{}.poisson_ratio,
            R"(density in kg/m^3, youngs_modulus in Pa, viscosity in Pa s; raises fsm.Error for
 out-of-range values.)")
       .def_readwrite("density", &M::density, "kg/m^3")
@@ -25,6 +28,10 @@ out-of-range values.)")
       .def_readwrite("viscosity", &M::viscosity, "Pa s")
       .def_readwrite("large_strain_modulus", &M::large_strain_modulus, "Pa (0: linear)")
       .def_readwrite("switch_strain", &M::switch_strain, "|strain| of the modulus switch")
+      .def_readwrite("poisson_ratio", &M::poisson_ratio,
+                     "nu in (-1, 0.5), of the continuum law")
+      .def_property_readonly("shear_modulus", &M::shear_modulus, "mu = E / (2 (1 + nu)) in Pa")
+      .def_property_readonly("bulk_modulus", &M::bulk_modulus, "K = E / (3 (1 - 2 nu)) in Pa")
       .def_property_readonly("is_bilinear", &M::is_bilinear,
                              "True when large_strain_modulus > 0 (the modulus switches)")
       .def_property_readonly("retardation_time", &M::retardation_time, "eta / E in s")
@@ -32,6 +39,7 @@ out-of-range values.)")
         return "Material(density=" + std::to_string(mat.density) +
                ", youngs_modulus=" + std::to_string(mat.youngs_modulus) +
                ", viscosity=" + std::to_string(mat.viscosity) +
+               ", poisson_ratio=" + std::to_string(mat.poisson_ratio) +
                (mat.is_bilinear()
                     ? ", large_strain_modulus=" + std::to_string(mat.large_strain_modulus) +
                           ", switch_strain=" + std::to_string(mat.switch_strain)

@@ -36,6 +36,10 @@ void define_simulation(py::module_& m) {
       .def_readonly("solver_iterations", &R::solver_iterations,
                     "linear-solver iterations (CG) summed over sub-steps; 0 for explicit schemes")
       .def_readonly("energy", &R::energy, "J after the step (nan when not checked)")
+      .def_readonly("inverted_elements", &R::inverted_elements,
+                    "continuum elements with J <= 0 after the step (0 without the law)")
+      .def_readonly("softened_contacts", &R::softened_contacts,
+                    "penalty contacts capped to an explicit step's limit (0 with implicit Euler)")
       .def_property_readonly("advanced", &R::advanced,
                              "True when the state moved on (status 'ok' or 'recovered')")
       .def("__repr__", [](const R& r) {

@@ -57,9 +57,16 @@ void column_property(py::class_<Model>& c, const char* name, Get get, const char
 }  // namespace
 
 void define_sphere_model(py::module_& m) {
-  py::class_<Region<Scalar>>(m, "Region", "A named part of a model with its material.")
+  py::enum_<ForceLaw>(m, "ForceLaw", R"(How a region's spheres resist deformation.
+
+links: the paper's Voigt links (Poisson's ratio 1/4). continuum: neo-Hookean on the region's
+tetrahedra with the material's Poisson's ratio (docs/physics.md section 11).)")
+      .value("links", ForceLaw::links)
+      .value("continuum", ForceLaw::continuum);
+  py::class_<Region<Scalar>>(m, "Region", "A named part of a model with its material and law.")
       .def_readonly("name", &Region<Scalar>::name, "the region's name")
       .def_readonly("material", &Region<Scalar>::material, "its Material")
+      .def_readonly("law", &Region<Scalar>::law, "its ForceLaw")
       .def("__repr__", [](const Region<Scalar>& r) { return "Region('" + r.name + "')"; });
 
   py::class_<Model> c(m, "SphereModel", R"(Spheres joined by Voigt links, grouped into regions.
@@ -73,7 +80,21 @@ Views are invalidated by add_node/add_link (take a fresh one after growing the m
 writing masses, fixed flags or link constants in place, call Simulation.refresh().)");
   c.def(py::init<>())
       .def("add_region", &Model::add_region, py::arg("name"), py::arg("material"),
+           py::arg("law") = ForceLaw::links,
            "Adds a region; returns its index. Raises fsm.Error for a taken name or a bad material.")
+      .def("set_region_law", &Model::set_region_law, py::arg("region"), py::arg("law"),
+           "Sets a region's ForceLaw (the continuum law needs the region's nodes in tetrahedra).")
+      .def("set_region_material", &Model::set_region_material, py::arg("region"),
+           py::arg("material"),
+           "Replaces a region's Material (links keep their constants: the continuum law and "
+           "contacts follow the new one).")
+      .def("add_tetrahedron", &Model::add_tetrahedron, py::arg("a"), py::arg("b"), py::arg("c"),
+           py::arg("d"),
+           "Adds a tetrahedron of four nodes of one region, positively oriented at rest; returns "
+           "its index.")
+      .def_property_readonly("num_tetrahedra", &Model::num_tetrahedra, "|T|")
+      .def_property_readonly("has_continuum", &Model::has_continuum,
+                             "True when some region uses the continuum law")
       .def("add_node", &Model::add_node, py::arg("rest_position"), py::arg("radius"),
            py::arg("mass"), py::arg("region"), "Adds a node at rest (m, m, kg); returns its index.")
       .def("add_link", py::overload_cast<Index, Index, Scalar, Scalar>(&Model::add_link),
@@ -155,6 +176,14 @@ writing masses, fixed flags or link constants in place, call Simulation.refresh(
         return view<Index>(mm.links().data(), mm.num_links(), 2, self, true);
       },
       "|L| x 2 node indices (int32), a read-only view (links change through add_link)");
+  c.def_property_readonly(
+      "tetrahedra",
+      [](py::object self) {
+        Model& mm = self.cast<Model&>();
+        return view<Index>(const_cast<Index*>(mm.tetrahedra().data()), mm.num_tetrahedra(), 4,
+                           self, true);
+      },
+      "|T| x 4 node indices (int32), a read-only view (add_tetrahedron adds one)");
 }
 
 }  // namespace fsm::python

@@ -36,7 +36,10 @@ keeps the cube when it returns True.)");
       .def_readonly("first_node", &PartRange::first_node, "index of the part's first node")
       .def_readonly("num_nodes", &PartRange::num_nodes, "how many nodes it added")
       .def_readonly("first_link", &PartRange::first_link, "index of the part's first link")
-      .def_readonly("num_links", &PartRange::num_links, "how many links it added");
+      .def_readonly("num_links", &PartRange::num_links, "how many links it added")
+      .def_readonly("first_tetrahedron", &PartRange::first_tetrahedron,
+                    "index of the part's first tetrahedron")
+      .def_readonly("num_tetrahedra", &PartRange::num_tetrahedra, "how many tetrahedra it added");
 
   m.def("add_tetrahedral_part", &add_tetrahedral_part<Scalar>, py::arg("model"), py::arg("mesh"),
         py::arg("region"), py::arg("radius"),

@@ -22,7 +22,7 @@ void define_tissue_model(py::module_& m) {
       .def_readonly("num_links", &Part::num_links, "how many links it has")
       .def_readonly("surface", &Part::surface, "index into Skin.surfaces, or -1")
       .def_readonly("first_tetrahedron", &Part::first_tetrahedron,
-                    "its first row in TissueModel.tetrahedra (tetrahedral parts)")
+                    "its first row in spheres.tetrahedra (tetrahedral parts)")
       .def_readonly("num_tetrahedra", &Part::num_tetrahedra,
                     "how many tetrahedra it has (0 for other topologies)")
       .def_property_readonly(
@@ -103,15 +103,6 @@ the deformed render surface.)")
           "skin", [](T& t) -> S& { return t.skin; }, py::return_value_policy::reference_internal,
           "the Skin (by reference)")
       .def_readonly("report_json", &T::report_json, "the builder's report (JSON text)")
-      .def_property_readonly(
-          "tetrahedra",
-          [](py::object self) {
-            T& t = self.cast<T&>();
-            return view<Index>(t.tetrahedra.data(), py::ssize_t(t.tetrahedra.rows()), 4, self,
-                               true);
-          },
-          "|T| x 4 node indices (int32, a read-only view) of the tetrahedral parts' fillings; "
-          "part p's rows are [p.first_tetrahedron, p.first_tetrahedron + p.num_tetrahedra)")
       .def("part", &T::part, py::arg("name"), py::return_value_policy::reference_internal,
            "The Part of that name; fsm.Error if there is none.")
       .def("validate", &T::validate,

@@ -12,8 +12,9 @@ TOP = 0.010  # the block fixture's top layer (m): 2 cells of 5 mm
 
 def pressing_tool(depth, radius=0.003):
     """A ball over the middle of the block fixture's top whose surface dips `depth` (m) below the
-    top spheres' surfaces (the top spheres have radius 2.5 mm)."""
-    centre = (0.01, 0.01, TOP + 0.0025 + radius - depth)
+    top spheres' centres (a tetrahedral filling's surface: its vertices meet instruments at their
+    centres)."""
+    centre = (0.01, 0.01, TOP + radius - depth)
     return fsm.Instrument(fsm.SphereShape(radius), fsm.Pose(centre), name="probe", friction=0.0)
 
 
@@ -59,10 +60,18 @@ def test_compute_writes_into_the_simulations_force_array_in_place(block):
     assert np.shares_memory(f, fresh)
     assert fresh[:, 2].sum() < 3.0 and np.array_equal(fresh, f)
     assert np.array_equal(fresh[0], (1.0, 2.0, 3.0))
-    once = f.copy()
-    solver.compute(sim)  # the overload taking the simulation adds the same forces again
-    assert np.allclose(sim.external_forces, 2 * once - _user_load(block.num_nodes), rtol=0,
-                       atol=1e-15)
+    before = solver.wrench(0).force.copy()
+    # The overload taking the simulation hands the same contacts to its force model instead, for
+    # the step to integrate: the external forces are left alone, the wrench is the same.
+    assert solver.compute(sim) == solver.num_contacts > 0
+    assert np.array_equal(sim.external_forces, f)
+    assert np.allclose(solver.wrench(0).force, before, rtol=0, atol=1e-15)
+    f[:] = 0
+    assert sim.step(1e-3).advanced
+    solver.collect(sim)  # the end-of-step forces: the block pushed back, the tool holds still
+    assert 0 < solver.wrench(0).force[2]
+    with pytest.raises(fsm.Error, match="collect"):
+        solver.collect(fsm.Simulation(block))
     # Arrays the solver could only write into through a copy are refused, never silently copied.
     with pytest.raises(fsm.Error, match="float64"):
         solver.compute(sim.model, np.zeros((block.num_nodes, 3), dtype=np.float32))
@@ -81,12 +90,6 @@ def test_compute_writes_into_the_simulations_force_array_in_place(block):
         solver.compute(other, np.zeros((1, 3)))
 
 
-def _user_load(n):
-    load = np.zeros((n, 3))
-    load[0] = (1.0, 2.0, 3.0)
-    return load
-
-
 def test_an_instrument_pressed_in_a_simulation_dents_the_block(block):
     sim = fsm.Simulation(block, gravity=(0, 0, 0))
     solver = fsm.ContactSolver(sim)
@@ -94,13 +97,19 @@ def test_an_instrument_pressed_in_a_simulation_dents_the_block(block):
     top = np.flatnonzero(np.isclose(sim.model.rest_positions[:, 2], TOP))
     for _ in range(200):  # 2 mm down over 0.2 s
         solver.instrument(tool).pose.position[2] -= 1e-5
-        sim.external_forces[:] = 0
-        solver.compute(sim)
-        assert sim.step(1e-3).status == "ok"
+        solver.instrument(tool).linear_velocity[:] = (0, 0, -0.01)
+        assert solver.step(sim, 1e-3).status == "ok"
     dent = sim.model.rest_positions[top, 2] - sim.model.positions[top, 2]
-    assert dent.max() > 5e-4  # the spheres under the tool went down
+    # The vertex under the tool went down with it, sliding a little off the frictionless ball's
+    # apex, and stays on the ball's surface: stiff contact, penetration under 1% of the 2 mm stroke.
+    c = solver.contacts
+    assert len(c) >= 1 and dent.max() > 1.5e-3
+    gap = np.linalg.norm(sim.model.positions[c["sphere"]] - solver.instrument(tool).pose.position,
+                         axis=1) - 0.003
+    assert np.all(np.abs(gap) < 2e-5)
     assert solver.wrench(tool).force[2] > 0
-    assert np.allclose(sim.external_forces.sum(axis=0), -solver.wrench(tool).force, atol=1e-12)
+    assert np.allclose(c["force"].sum(axis=0), -solver.wrench(tool).force, atol=1e-12)
+    assert not sim.external_forces.any()
 
 
 def test_project_moves_spheres_out_of_the_instrument(block):
@@ -142,7 +151,7 @@ def test_bad_shapes_poses_and_options_raise_fsm_error(block):
     with pytest.raises(fsm.Error, match="friction"):
         solver.add_instrument(fsm.Instrument(fsm.SphereShape(0.001), friction=-1))
     with pytest.raises(fsm.Error, match="contact options"):
-        fsm.ContactSolver(block, fsm.ContactOptions(stiffness_scale=0))
+        fsm.ContactSolver(block, fsm.ContactOptions(stiffness_ratio=0))
     with pytest.raises(IndexError):
         solver.instrument(0)
     with pytest.raises(TypeError):

@@ -340,7 +340,6 @@ void fill_parts(Build& b) {
 // tetrahedra.
 void place_parts(Build& b) {
   SphereModel<double>& spheres = b.model.spheres;
-  std::vector<Eigen::Matrix<Index, 1, 4>> tetrahedra;
   for (std::size_t p = 0; p < b.scene.parts.size(); ++p) {
     const PartSpec& spec = b.scene.parts[p];
     PartOutcome& out = b.outcomes[p];
@@ -350,10 +349,10 @@ void place_parts(Build& b) {
     part.name = spec.name;
     part.topology = spec.topology;
     part.radius = spec.radius;
-    part.region = spheres.add_region(spec.name, spec.material);
+    part.region = spheres.add_region(spec.name, spec.material, spec.law);
     part.first_node = spheres.num_nodes();
     part.first_link = spheres.num_links();
-    part.first_tetrahedron = Index(tetrahedra.size());
+    part.first_tetrahedron = spheres.num_tetrahedra();
     const Material<double>& mat = spec.material;
     const double volume = std::abs(out.report.volume);
     auto add_nodes = [&](const Positions<double>& c, const Eigen::VectorXd& radii,
@@ -370,8 +369,6 @@ void place_parts(Build& b) {
         // the surface (the boundary is within h/4 of it): scale them to the organ's rho V.
         const Index n = spheres.num_nodes() - part.first_node;
         spheres.masses().segment(part.first_node, n) *= volume / out.tetra.mesh.volume();
-        for (Index t = 0; t < out.tetra.mesh.tetrahedra.rows(); ++t)
-          tetrahedra.push_back(out.tetra.mesh.tetrahedra.row(t).array() + part.first_node);
         break;
       }
       case Topology::axis: {
@@ -423,16 +420,13 @@ void place_parts(Build& b) {
     }
     part.num_nodes = spheres.num_nodes() - part.first_node;
     part.num_links = spheres.num_links() - part.first_link;
-    part.num_tetrahedra = Index(tetrahedra.size()) - part.first_tetrahedron;
+    part.num_tetrahedra = spheres.num_tetrahedra() - part.first_tetrahedron;
     out.report.spheres = part.num_nodes;
     out.report.links = part.num_links;
     out.report.mass = spheres.masses().segment(part.first_node, part.num_nodes).sum();
     b.model.parts.push_back(part);
     out.report.seconds += since(t0);
   }
-  b.model.tetrahedra.resize(Index(tetrahedra.size()), 4);
-  for (std::size_t t = 0; t < tetrahedra.size(); ++t)
-    b.model.tetrahedra.row(Index(t)) = tetrahedra[t];
 }
 
 // Stage 3: attachments. Each sphere of one part within the tolerance of the other part's spheres

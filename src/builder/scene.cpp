@@ -104,7 +104,9 @@ class Reader {
 };
 
 Material<double> read_material(const Reader& r, const json& j, const std::string& where) {
-  r.keys(j, {"density", "youngs_modulus", "viscosity", "large_strain_modulus", "switch_strain"},
+  r.keys(j,
+         {"density", "youngs_modulus", "viscosity", "large_strain_modulus", "switch_strain",
+          "poisson_ratio"},
          where + " material");
   Material<double> m;
   m.density = r.number(j, "density", where);
@@ -112,6 +114,7 @@ Material<double> read_material(const Reader& r, const json& j, const std::string
   m.viscosity = r.number_or(j, "viscosity", 0.0, where);
   m.large_strain_modulus = r.number_or(j, "large_strain_modulus", 0.0, where);
   m.switch_strain = r.number_or(j, "switch_strain", 0.0, where);
+  m.poisson_ratio = r.number_or(j, "poisson_ratio", m.poisson_ratio, where);
   try {
     m.validate(where);
   } catch (const Error& e) {
@@ -233,8 +236,8 @@ PartSpec read_part(const Reader& r, const json& p, std::size_t index, double uni
                                : std::string();
   const std::string where = name.empty() ? "part " + std::to_string(index) : "part '" + name + "'";
   r.keys(p,
-         {"name", "mesh", "meshes", "mesh_units", "topology", "radius", "material", "repair",
-          "metric", "optimiser", "axis", "grid", "packing"},
+         {"name", "mesh", "meshes", "mesh_units", "topology", "radius", "material", "law",
+          "repair", "metric", "optimiser", "axis", "grid", "packing"},
          where);
   if (name.empty()) r.fail(where, "'name' must be a non-empty string");
   if (!names.insert(name).second) r.fail(where, "a part of that name already exists");
@@ -278,6 +281,17 @@ PartSpec read_part(const Reader& r, const json& p, std::size_t index, double uni
   if (!(part.radius > 0)) r.fail(where, "'radius' must be positive");
   if (!p.contains("material")) r.fail(where, "missing 'material'");
   part.material = read_material(r, p["material"], where);
+  if (p.contains("law")) {
+    const std::string law = r.string(p, "law", where);
+    if (law == "links")
+      part.law = ForceLaw::links;
+    else if (law == "continuum")
+      part.law = ForceLaw::continuum;
+    else
+      r.fail(where, "unknown law '" + law + "' (links, continuum)");
+    if (part.law == ForceLaw::continuum && part.topology != Topology::tetrahedral)
+      r.fail(where, "the continuum law needs a tetrahedral part (it acts on tetrahedra)");
+  }
   if (p.contains("repair")) read_repair(r, p["repair"], units, part, where);
   read_topology_options(r, p, units, part, where);
   return part;

@@ -17,7 +17,7 @@ namespace fsm {
 
 namespace {
 
-// --- Constants of format versions 1 and 2
+// --- Constants of format versions 1 to 3
 // ---------------------------------------------------------
 
 // PNG-style: a non-ASCII first byte catches 7-bit transfers, CR LF catches newline conversion,
@@ -315,15 +315,17 @@ void write_material(Writer& w, const Material<double>& m) {
   w.f64(m.viscosity);
   w.f64(m.large_strain_modulus);
   w.f64(m.switch_strain);
+  w.f64(m.poisson_ratio);  // version 3
 }
 
-Material<double> read_material(Reader& r) {
+Material<double> read_material(Reader& r, std::uint32_t version) {
   Material<double> m;
   m.density = r.f64("density");
   m.youngs_modulus = r.f64("youngs_modulus");
   m.viscosity = r.f64("viscosity");
   m.large_strain_modulus = r.f64("large_strain_modulus");
   m.switch_strain = r.f64("switch_strain");
+  if (version >= 3) m.poisson_ratio = r.f64("poisson_ratio");
   return m;
 }
 
@@ -340,6 +342,7 @@ void write_sections(Writer& w, const TissueModel<double>& model) {
   for (const Region<double>& region : s.regions()) {
     w.string(region.name, "region name");
     write_material(w, region.material);
+    w.u8(static_cast<std::uint8_t>(region.law));  // version 3
   }
   w.end_section(at);
 
@@ -405,7 +408,7 @@ void write_sections(Writer& w, const TissueModel<double>& model) {
   w.end_section(at);
 
   at = w.begin_section(k_tag_tetrahedra);
-  w.matrix(model.tetrahedra, "tetrahedra");
+  w.matrix(s.tetrahedra(), "tetrahedra");
   w.end_section(at);
 }
 
@@ -414,14 +417,21 @@ void read_meta(Reader& r, TissueModel<double>& model) {
   model.report_json = r.string("report_json");
 }
 
-std::vector<Region<double>> read_regions(Reader& r) {
+std::vector<Region<double>> read_regions(Reader& r, std::uint32_t version) {
   std::vector<Region<double>> regions;
   const std::uint32_t n = r.u32("region count");
   // No reserve: each region takes at least 44 bytes, so the loop ends with the bytes.
   for (std::uint32_t k = 0; k < n; ++k) {
     Region<double> region;
     region.name = r.string("region name");
-    region.material = read_material(r);
+    region.material = read_material(r, version);
+    if (version >= 3) {
+      const std::uint8_t law = r.u8("force law");
+      if (law > static_cast<std::uint8_t>(ForceLaw::continuum))
+        throw r.malformed("region '" + region.name + "' has unknown force law " +
+                          std::to_string(law));
+      region.law = static_cast<ForceLaw>(law);
+    }
     regions.push_back(std::move(region));
   }
   return regions;
@@ -525,9 +535,11 @@ void read_skin(Reader& r, Skin<double>& skin) {
 // Rebuilds the SphereModel through its public API, so its invariants hold and every value is
 // checked as add_region / add_node / add_link check it. Throws fsm::Error without a file name.
 SphereModel<double> rebuild_spheres(const std::vector<Region<double>>& regions,
-                                    const StoredNodes& n, const StoredLinks& l) {
+                                    const StoredNodes& n, const StoredLinks& l,
+                                    const TetrahedronArray& tets) {
   SphereModel<double> s;
-  for (const Region<double>& region : regions) s.add_region(region.name, region.material);
+  for (const Region<double>& region : regions)
+    s.add_region(region.name, region.material, region.law);
   const auto num_nodes = Index(n.rest_positions.rows());
   const auto num_links = Index(l.links.rows());
   s.reserve(num_nodes, num_links);
@@ -547,6 +559,8 @@ SphereModel<double> rebuild_spheres(const std::vector<Region<double>>& regions,
     s.add_link(l.links(k, 0), l.links(k, 1),
                VoigtLink<double>{l.rest_lengths[k], l.stiffness[k], l.damping[k],
                                  l.large_stiffness[k], l.switch_strain[k]});
+  for (Index t = 0; t < Index(tets.rows()); ++t)
+    s.add_tetrahedron(tets(t, 0), tets(t, 1), tets(t, 2), tets(t, 3));
   return s;
 }
 
@@ -632,19 +646,20 @@ TissueModel<double> parse(std::string_view bytes, const std::string& file) {
   std::vector<Region<double>> regions;
   StoredNodes nodes;
   StoredLinks links;
+  TetrahedronArray tets(0, 4);
   section(k_tag_meta, [&](Reader& r) { read_meta(r, model); });
-  section(k_tag_regions, [&](Reader& r) { regions = read_regions(r); });
+  section(k_tag_regions, [&](Reader& r) { regions = read_regions(r, version); });
   section(k_tag_nodes, [&](Reader& r) { nodes = read_nodes(r); });
   section(k_tag_links, [&](Reader& r) { links = read_links(r); });
   section(k_tag_parts, [&](Reader& r) { model.parts = read_parts(r, version); });
   section(k_tag_attachments, [&](Reader& r) { read_attachments(r, model); });
   section(k_tag_skin, [&](Reader& r) { read_skin(r, model.skin); });
   if (version >= 2)
-    section(k_tag_tetrahedra, [&](Reader& r) { r.matrix(model.tetrahedra, "tetrahedra"); });
+    section(k_tag_tetrahedra, [&](Reader& r) { r.matrix(tets, "tetrahedra"); });
 
   // 5. The model itself, checked as any model is; the checker's message names the file.
   try {
-    model.spheres = rebuild_spheres(regions, nodes, links);
+    model.spheres = rebuild_spheres(regions, nodes, links, tets);
     model.validate();
   } catch (const Error& e) {
     throw Error(file, e.part(), e.reason());

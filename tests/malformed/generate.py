@@ -175,16 +175,16 @@ def models():
     # Tetrahedra.
     _, _, tets, _ = section(base, "TETS")
     write_model("tetrahedron_node_out_of_range.fsm", patch_i32(base, tets + 8, 100000),
-                "outside the part's nodes")
+                "node index out of range")
     write_model("tetrahedron_node_negative.fsm", patch_i32(base, tets + 8, -1),
-                "outside the part's nodes")
+                "node index out of range")
     t = struct.unpack_from("<4i", base, tets + 8)
     swapped = bytearray(base)
     struct.pack_into("<4i", swapped, tets + 8, t[0], t[1], t[3], t[2])
     write_model("tetrahedron_inverted.fsm", refresh(swapped), "inverted or degenerate at rest")
     degenerate = bytearray(base)
     struct.pack_into("<4i", degenerate, tets + 8, t[0], t[1], t[1], t[2])
-    write_model("tetrahedron_repeated_node.fsm", refresh(degenerate), "inverted or degenerate")
+    write_model("tetrahedron_repeated_node.fsm", refresh(degenerate), "repeats a node")
     write_model("tetrahedra_rows_near_2_31.fsm", patch(base, tets, "<I", 2**31 - 1), "truncated")
     write_model("tetrahedra_rows_over_index.fsm", patch(base, tets, "<I", 2**32 - 1),
                 "more than an Index can count")
@@ -240,7 +240,7 @@ def models():
     write_model("magic_wrong.fsm", b"PK\x03\x04" + base[4:], "not an fsm model file")
     write_model("version_zero.fsm", refresh(base[:8] + struct.pack("<I", 0) + base[12:]),
                 "format version 0 does not exist")
-    write_model("version_three.fsm", refresh(base[:8] + struct.pack("<I", 3) + base[12:]),
+    write_model("version_four.fsm", refresh(base[:8] + struct.pack("<I", 4) + base[12:]),
                 "is newer than this runtime")
     write_model("version_2_32_minus_1.fsm",
                 refresh(base[:8] + struct.pack("<I", 2**32 - 1) + base[12:]),

@@ -48,6 +48,9 @@ struct PartSpec {
   Topology topology{Topology::tetrahedral};
   double radius{0};  ///< Nominal sphere radius (m).
   Material<double> material;
+  /// The part's force law ("law": "links" or "continuum"; the continuum law needs a tetrahedral
+  /// part). Default: links.
+  ForceLaw law{ForceLaw::links};
   bool orient{false};                 ///< Repair: reorient faces outward.
   std::optional<AlphaWrapSpec> wrap;  ///< Repair: alpha-wrap the meshes into one closed surface.
   std::shared_ptr<const MetricField> metric;  ///< Tetrahedral only; null = isotropic(radius).

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "fsm/collision/shapes.hpp"
+#include "fsm/force_model.hpp"
 #include "fsm/sphere_model.hpp"
 
 namespace fsm::collision {
@@ -24,11 +25,20 @@ struct Instrument {
   bool enabled{true};
 };
 
-/// @brief Force (N) and torque (N m, about the pose origin) the tissue exerts on an instrument.
+/// @brief Force (N) and torque (N m, about the pose origin) the tissue exerts on an instrument,
+/// and how the force changes as the instrument translates.
+///
+/// `stiffness` and `damping` are the sums of k n n^T and c n n^T over the contacts that push (the
+/// penalty's normal stiffness N/m and damping N s/m): moving the instrument by dx at velocity
+/// change dv changes the force by about -stiffness dx - damping dv. Whoever integrates the
+/// instrument (ServoLoop's proxy) takes them implicitly, so contacts far stiffer than the tissue
+/// do not make the instrument unstable.
 template <typename Scalar>
 struct Wrench {
   Vector3<Scalar> force{Vector3<Scalar>::Zero()};
   Vector3<Scalar> torque{Vector3<Scalar>::Zero()};
+  Matrix3<Scalar> stiffness{Matrix3<Scalar>::Zero()};  ///< -d force / d position (N/m)
+  Matrix3<Scalar> damping{Matrix3<Scalar>::Zero()};    ///< -d force / d velocity (N s/m)
 };
 
 /// @brief One contact found by ContactSolver::compute().
@@ -46,14 +56,24 @@ struct Contact {
 /// @brief How contacts respond.
 template <typename Scalar>
 struct ContactOptions {
-  /// Penalty stiffness \f$k = s E r\f$ (N/m) from the sphere's region modulus E and radius r (a
-  /// linearised Hertz contact of a ball of radius r); this is s.
-  Scalar stiffness_scale{Scalar(2)};
+  /// Penalty stiffness as a multiple of the sphere's own tissue stiffness (the Gershgorin row sum
+  /// of its links' and elements' rest stiffness, ForceModel::node_stiffness): the contact yields
+  /// 1/ratio as much as the tissue around it, so the penetration is a small, fixed share of the
+  /// deformation at any resolution, set by non-penetration rather than by the tissue's modulus or
+  /// the sphere's size. Implicit Euler takes the contact into its solve (ForceModel), so no
+  /// stability cap softens it; an explicit integrator needs a step small enough for it (or a
+  /// small ratio).
+  Scalar stiffness_ratio{Scalar(100)};
   /// Damping ratio \f$\zeta\f$ of the contact: \f$c = 2\zeta\sqrt{k m}\f$.
   Scalar damping_ratio{Scalar(0.5)};
   /// Regularisation speed (m/s) of Coulomb friction: \f$\mathbf{f}_t = -\mu f_n\mathbf{v}_t /
   /// \sqrt{|\mathbf{v}_t|^2 + \epsilon^2}\f$.
   Scalar friction_speed{Scalar(1e-3)};
+  /// Spheres that are vertices of tetrahedra (a tetrahedral filling's boundary vertices lie on
+  /// the organ's surface) meet instruments at their centres; other spheres (chains, grids,
+  /// packings, which lie inside their surface) at their radius. False: every sphere at its radius
+  /// (the paper's filled-sphere contact).
+  bool tetrahedral_surface{true};
   /// Contacts between spheres of different parts (regions).
   bool part_contact{true};
   /// Contacts between spheres of one part that are far apart at rest (more than twice their radii
@@ -69,32 +89,26 @@ struct ContactOptions {
   /// Part contacts keep a Verlet list of candidate pairs within reach plus this skin (m) and
   /// rescan only after some sphere moved more than half of it; 0 rescans every step.
   Scalar verlet_skin{Scalar(0.002)};
-  /// The step (s) the contact forces will be applied over. Contact forces enter a step as
-  /// external forces, explicitly, so a stiff contact on a light sphere (or a sphere pressed by many
-  /// neighbours at once) would be unstable. Each sphere's contact stiffness is therefore capped:
-  /// an instrument's at \f$\tfrac12(m_i/h^2 + \sum_l k_l)\f$ over the sphere's links (an
-  /// implicit step's matrix \f$M + h^2K\f$ holds the links of a locally pressed sphere), and part
-  /// contacts share \f$\tfrac12 m_i/h^2\f$ among the sphere's candidate pairs (a part pressed as
-  /// a whole is not held by its links). This keeps \f$\omega h \le 1\f$ for the explicit part;
-  /// an explicit integrator needs its own step to allow for the contact stiffness as well. 0
-  /// removes the cap.
-  Scalar time_step{Scalar(1e-3)};
 };
 
 /// @brief Contact detection and response for one SphereModel and its instruments.
 ///
-/// compute() reads the model's positions and velocities, finds contacts (spatial hash broad
-/// phase, closed-form or GJK narrow phase), and adds the contact forces to an external-force array
-/// (pass Simulation::external_forces() after setting your own loads); each instrument's wrench is
-/// minus the sum of what it applies. It allocates nothing and never throws; a model of another
-/// size than the solver was sized for is reported by its return value, as TriangleBvh::refit()
-/// and Integrator::step() report theirs.
+/// Each step: compute(model, forces) reads the model's positions and velocities, finds contacts
+/// (spatial hash broad phase, closed-form or GJK narrow phase) and hands them to the ForceModel as
+/// penalty contacts (Simulation::forces()), which the step integrates (implicitly with implicit
+/// Euler: the contact's stiffness is in the solve); after the step, collect(forces) reads their
+/// end-of-step forces into contacts() and each instrument's wrench (minus the sum of what it
+/// applies). compute(model, array) instead adds the forces at the current state to an array
+/// (analysis, or explicit use). Nothing allocates or throws; a model of another size than the
+/// solver was sized for is reported by the return value, as TriangleBvh::refit() and
+/// Integrator::step() report theirs.
 ///
 /// Instrument-sphere contact: penalty \f$f_n = \max(0, k\delta + c\dot\delta)\f$ along the contact
-/// normal (never pulling), plus regularised Coulomb friction on the tangential slip. Sphere-sphere
-/// contact between parts: the same penalty where the spheres are closer than \f$\min(r_i + r_j,
-/// |\bar{\mathbf{x}}_i - \bar{\mathbf{x}}_j|)\f$ (their rest distance when they overlap at rest,
-/// so touching parts are at rest in contact), excluding linked pairs.
+/// normal (never pulling), plus regularised Coulomb friction on the tangential slip, with \f$k\f$
+/// from ContactOptions::stiffness_ratio. Sphere-sphere contact between parts: the same penalty
+/// where the spheres are closer than \f$\min(r_i + r_j, |\bar{\mathbf{x}}_i - \bar{\mathbf{x}}_j|)\f$
+/// (their rest distance when they overlap at rest, so touching parts are at rest in contact),
+/// excluding linked pairs, with the softer sphere's stiffness.
 template <typename Scalar>
 class ContactSolver {
  public:
@@ -102,6 +116,13 @@ class ContactSolver {
   /// @brief Sizes the hash and contact list for `model` (allocates). fsm::Error for bad options.
   explicit ContactSolver(const SphereModel<Scalar>& model,
                          const ContactOptions<Scalar>& options = {});
+  /// @brief The same, and makes room in `forces` for max_contacts contacts (allocates once, so
+  /// that compute() never does).
+  ContactSolver(const SphereModel<Scalar>& model, ForceModel<Scalar>& forces,
+                const ContactOptions<Scalar>& options = {})
+      : ContactSolver(model, options) {
+    forces.reserve_contacts(m_options.max_contacts);
+  }
   /// @brief Re-reads the model (after adding nodes or links, or changing radii).
   void refresh(const SphereModel<Scalar>& model);
 
@@ -114,9 +135,20 @@ class ContactSolver {
   [[nodiscard]] Index num_instruments() const noexcept { return Index(m_instruments.size()); }
   [[nodiscard]] const ContactOptions<Scalar>& options() const noexcept { return m_options; }
 
-  /// @brief Finds contacts at the model's state and adds their forces to `forces` (`|V| x 3`, N).
+  /// @brief Finds contacts at the model's state and gives them to `forces` (replacing its
+  /// contacts) for the next step to integrate; contacts() and wrench() hold the forces at the
+  /// current state until collect().
+  /// @return false, with no contact, when the model does not have the num_nodes() spheres the
+  /// solver was sized for (call refresh() after growing the model).
+  bool compute(const SphereModel<Scalar>& model, ForceModel<Scalar>& forces) noexcept;
+  /// @brief After a step: the contacts' forces at the end of the step (ForceModel::
+  /// finish_contacts) into contacts() and the wrenches. Returns false when `forces` does not hold
+  /// this solver's contacts.
+  bool collect(const ForceModel<Scalar>& forces) noexcept;
+  /// @brief Finds contacts at the model's state and adds their forces at that state to `forces`
+  /// (`|V| x 3`, N): the same contacts and laws, applied explicitly.
   /// @return false, with nothing found and `forces` untouched, when the model or `forces` does not
-  /// have the num_nodes() rows the solver was sized for (call refresh() after growing the model).
+  /// have the num_nodes() rows the solver was sized for.
   bool compute(const SphereModel<Scalar>& model, Eigen::Ref<Positions<Scalar>> forces) noexcept;
 
   /// @brief Moves every sphere that penetrates an instrument out of it along the contact normal
@@ -124,6 +156,12 @@ class ContactSolver {
   /// moved) when the model does not have num_nodes() spheres.
   Index project(SphereModel<Scalar>& model) noexcept;
 
+  /// @brief Sphere i's penalty stiffness against instruments (N/m): stiffness_ratio times its
+  /// tissue stiffness (ForceModel::node_stiffness).
+  [[nodiscard]] Scalar contact_stiffness(Index i) const { return m_k.at(std::size_t(i)); }
+  /// @brief The radius sphere i meets instruments with (m): 0 for a vertex of a tetrahedron when
+  /// ContactOptions::tetrahedral_surface, else its radius.
+  [[nodiscard]] Scalar contact_radius(Index i) const { return m_contact_radius.at(std::size_t(i)); }
   /// @brief The sphere count the solver was sized for (by the constructor or refresh()).
   [[nodiscard]] Index num_nodes() const noexcept { return Index(m_next.size()); }
 
@@ -154,8 +192,13 @@ class ContactSolver {
   template <typename Visit>
   void for_each_part_pair(const SphereModel<Scalar>& model, Scalar reach_extra,
                           Visit&& visit) const;
-  void part_contact(const SphereModel<Scalar>& model, Index i, Index j,
-                    Eigen::Ref<Positions<Scalar>> forces) noexcept;
+  template <typename Emit>
+  void part_contact(const SphereModel<Scalar>& model, Index i, Index j, Emit&& emit) noexcept;
+  // Finds every contact at the model's state and calls emit(PenaltyContact) for each (its
+  // `force` the force at that state); records and wrenches follow the emitted forces.
+  template <typename Emit>
+  void detect(const SphereModel<Scalar>& model, Emit&& emit) noexcept;
+  void record_and_add(const PenaltyContact<Scalar>& c) noexcept;
 
   ContactOptions<Scalar> m_options;
   std::vector<Instrument<Scalar>> m_instruments;
@@ -169,12 +212,9 @@ class ContactSolver {
   bool m_hashed{false};
   // Link adjacency (CSR) to skip linked pairs.
   std::vector<Index> m_adj_start, m_adj;
-  // Per node: contact stiffness k = s E r (N/m); the most populous region (not scanned for part
-  // contact).
-  std::vector<Scalar> m_k;
-  // Per node: the stability budget m / h^2 (N/m), and its candidate part contacts.
-  std::vector<Scalar> m_budget, m_tool_budget;
-  std::vector<Index> m_pair_count;
+  // Per node: contact stiffness (N/m) and the radius it meets instruments with (m); the most
+  // populous region (not scanned for part contact).
+  std::vector<Scalar> m_k, m_contact_radius;
   Index m_dominant_region{-1};
   Scalar m_max_radius{0};
   std::vector<Contact<Scalar>> m_contacts;
@@ -186,6 +226,7 @@ class ContactSolver {
   Positions<Scalar> m_list_x;
   bool m_list_valid{false};
   Index m_rebuilds{0};
+  const ForceModel<Scalar>* m_filled{nullptr};  // the force model compute() last filled
 };
 
 extern template class ContactSolver<float>;

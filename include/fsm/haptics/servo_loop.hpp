@@ -94,14 +94,16 @@ struct ServoSnapshot {
 /// Each device tick: read the device at the nominal tick time, map it into the simulation frame,
 /// evaluate the coupling force against the proxy, apply the safety chain (watchdog, ramp, clamp)
 /// and command the force. Each simulation step: move the proxy under coupling and tissue forces,
-/// pose the instrument on it, compute contacts into the simulation's external forces, step, and
-/// publish a snapshot. Neither allocates nor throws; the device tick takes no lock.
+/// pose the instrument on it, hand the contacts to the simulation's force model (implicit Euler
+/// takes them into its solve), step, read the contacts' end-of-step wrench, and publish a
+/// snapshot. Neither allocates nor throws; the device tick takes no lock.
 ///
 /// The simulation, the contact solver and the device must outlive the loop and must not be touched
 /// by others while it runs (read snapshots instead).
 class ServoLoop {
  public:
-  /// @param sim the simulation to step (its external forces are overwritten every step)
+  /// @param sim the simulation to step (its penalty contacts are replaced every step; its external
+  /// forces are left to the caller)
   /// @param contacts the contact solver for sim's model
   /// @param instrument the instrument of `contacts` the device drives
   /// @param device the device

@@ -114,7 +114,191 @@ void symmetric_stiffness(const LinkState<Scalar>& s, JacobianForm form, Scalar& 
   alpha = s.tangent - beta;
 }
 
+// A penalty contact's relative velocity (of `node` against the instrument surface or `other`) and
+// displacement since detection.
+template <typename Scalar>
+void contact_kinematics(const PenaltyContact<Scalar>& c, const Scalar* x, const Scalar* v,
+                        Vector3<Scalar>& displacement, Vector3<Scalar>& velocity) noexcept {
+  const std::ptrdiff_t i = 3 * std::ptrdiff_t(c.node);
+  displacement = Vector3<Scalar>(x[i], x[i + 1], x[i + 2]) - c.node_start;
+  velocity = Vector3<Scalar>(v[i], v[i + 1], v[i + 2]);
+  if (c.other >= 0) {
+    const std::ptrdiff_t j = 3 * std::ptrdiff_t(c.other);
+    displacement -= Vector3<Scalar>(x[j], x[j + 1], x[j + 2]) - c.other_start;
+    velocity -= Vector3<Scalar>(v[j], v[j + 1], v[j + 2]);
+  } else {
+    velocity -= c.surface_velocity;
+  }
+}
+
+// The penetration (m) of `node` at x in the tangent-plane model, the instrument moved by
+// `extra_depth` along the normal.
+template <typename Scalar>
+Scalar contact_depth(const PenaltyContact<Scalar>& c, const Scalar* x,
+                     Scalar extra_depth) noexcept {
+  const std::ptrdiff_t i = 3 * std::ptrdiff_t(c.node);
+  Vector3<Scalar> d = Vector3<Scalar>(x[i], x[i + 1], x[i + 2]) - c.node_start;
+  if (c.other >= 0) {
+    const std::ptrdiff_t j = 3 * std::ptrdiff_t(c.other);
+    d -= Vector3<Scalar>(x[j], x[j + 1], x[j + 2]) - c.other_start;
+  }
+  return c.depth - c.normal.dot(d) + extra_depth;
+}
+
+// The force on `node` at (x, v) in the tangent-plane model, the instrument moved by
+// `extra_depth` along the normal; fn gets the normal force, slip the tangential relative velocity.
+// Clamped, the normal force never pulls (k depth - c v_n below zero gives zero). Unclamped, it is
+// the linear law the implicit step takes for a contact that penetrates at the step's start (its
+// damping may pull for that step); the friction always uses the clamped normal force.
+template <typename Scalar>
+Vector3<Scalar> contact_force(const PenaltyContact<Scalar>& c, const Scalar* x, const Scalar* v,
+                              Scalar extra_depth, Scalar& fn, Vector3<Scalar>& slip,
+                              bool clamp = true) noexcept {
+  Vector3<Scalar> d, u;
+  contact_kinematics(c, x, v, d, u);
+  const Scalar depth = c.depth - c.normal.dot(d) + extra_depth;
+  const Scalar vn = c.normal.dot(u);
+  const Scalar linear = c.stiffness * depth - c.damping * vn;
+  fn = std::max(Scalar(0), linear);
+  slip = u - vn * c.normal;
+  const Scalar s = std::sqrt(slip.squaredNorm() + c.friction_speed * c.friction_speed);
+  const Vector3<Scalar> F = (clamp ? fn : linear) * c.normal - (c.friction * fn / s) * slip;
+  return F.allFinite() ? F : Vector3<Scalar>::Zero();
+}
+
+// How far an instrument contact's surface has advanced along its normal after time t.
+template <typename Scalar>
+Scalar surface_advance(const PenaltyContact<Scalar>& c, Scalar t) noexcept {
+  return c.other < 0 ? t * c.normal.dot(c.surface_velocity) : Scalar(0);
+}
+
 }  // namespace detail
+
+template <typename Scalar>
+void ForceModel<Scalar>::reserve_contacts(Index capacity) {
+  // (Defined before refresh() uses it.)
+  if (capacity < 0) throw Error("", "contacts", "capacity must be non-negative");
+  if (Index(m_contacts.size()) < capacity) m_contacts.resize(std::size_t(capacity));
+}
+
+template <typename Scalar>
+bool ForceModel<Scalar>::add_contact(const PenaltyContact<Scalar>& contact) noexcept {
+  if (m_num_contacts >= Index(m_contacts.size())) return false;
+  m_contacts[std::size_t(m_num_contacts++)] = contact;
+  return true;
+}
+
+template <typename Scalar>
+void ForceModel<Scalar>::start_contacts(const SphereModel<Scalar>& model) noexcept {
+  const Scalar* x = model.positions().data();
+  const Scalar* v = model.velocities().data();
+  m_contacts_linearised = false;
+  for (Index k = 0; k < m_num_contacts; ++k) {
+    PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
+    Scalar fn;
+    Vector3<Scalar> slip;
+    c.start_force =
+        detail::contact_force(c, x, v, detail::surface_advance(c, m_contact_time), fn, slip);
+    c.in_solve = false;
+  }
+}
+
+template <typename Scalar>
+void ForceModel<Scalar>::finish_contacts(const SphereModel<Scalar>& model) noexcept {
+  const Scalar* x = model.positions().data();
+  const Scalar* v = model.velocities().data();
+  for (Index k = 0; k < m_num_contacts; ++k) {
+    PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
+    Scalar fn;
+    Vector3<Scalar> slip;
+    c.force = detail::contact_force(c, x, v, detail::surface_advance(c, m_contact_time), fn, slip);
+  }
+}
+
+template <typename Scalar>
+Index ForceModel<Scalar>::limit_contact_stiffness(const SphereModel<Scalar>& model,
+                                                  Scalar h) noexcept {
+  const auto mass = model.masses();
+  Index softened = 0;
+  for (Index k = 0; k < m_num_contacts; ++k) {
+    PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
+    const Scalar m = c.other < 0 ? mass[c.node]
+                                 : mass[c.node] * mass[c.other] / (mass[c.node] + mass[c.other]);
+    const Scalar cap = Scalar(0.5) * m / (h * h);
+    if (!(c.stiffness > cap)) continue;
+    c.damping *= std::sqrt(cap / c.stiffness);
+    c.stiffness = cap;
+    ++softened;
+  }
+  return softened;
+}
+
+template <typename Scalar>
+void ForceModel<Scalar>::add_contact_linearisation(const SphereModel<Scalar>& model, Scalar h,
+                                                   Scalar* rhs) noexcept {
+  const Scalar* x = model.positions().data();
+  const Scalar* v = model.velocities().data();
+  m_contacts_linearised = true;
+  for (Index k = 0; k < m_num_contacts; ++k) {
+    PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
+    const Scalar adv = detail::surface_advance(c, m_contact_time);
+    c.in_solve = detail::contact_depth(c, x, adv) > Scalar(0);
+    if (!c.in_solve) continue;
+    Scalar fn;
+    Vector3<Scalar> slip;
+    // h (F_linear - F_clamped): evaluate() clamped the force the rhs holds.
+    Vector3<Scalar> r =
+        h * (detail::contact_force(c, x, v, adv, fn, slip, false) -
+             detail::contact_force(c, x, v, adv, fn, slip));
+    if (c.other < 0) r += h * h * c.stiffness * c.normal.dot(c.surface_velocity) * c.normal;
+    for (int a = 0; a < 3; ++a) {
+      if (!m_immobile[std::size_t(c.node)]) rhs[3 * c.node + a] += r[a];
+      if (c.other >= 0 && !m_immobile[std::size_t(c.other)]) rhs[3 * c.other + a] -= r[a];
+    }
+  }
+}
+
+template <typename Scalar>
+Scalar ForceModel<Scalar>::contact_work(const SphereModel<Scalar>& model,
+                                        const ConstPositionsRef& x_before) const noexcept {
+  const auto x = model.positions();
+  const Scalar* xp = x.data();
+  const Scalar* vp = model.velocities().data();
+  Scalar w(0);
+  for (Index k = 0; k < m_num_contacts; ++k) {
+    const PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
+    Vector3<Scalar> d = (x.row(c.node) - x_before.row(c.node)).transpose();
+    if (c.other >= 0) d -= (x.row(c.other) - x_before.row(c.other)).transpose();
+    Vector3<Scalar> F;
+    if (m_contacts_linearised) {
+      // Backward Euler applies the end-of-step force of its linear law to contacts that
+      // penetrated at the start, and nothing to the others.
+      Scalar fn;
+      Vector3<Scalar> slip;
+      F = c.in_solve ? detail::contact_force(c, xp, vp, detail::surface_advance(c, m_contact_time),
+                                             fn, slip, false)
+                     : Vector3<Scalar>::Zero();
+    } else {
+      F = Scalar(0.5) * (c.start_force + c.force);  // trapezoid: exact for a linear spring
+    }
+    w += F.dot(d);
+  }
+  return w;
+}
+
+template <typename Scalar>
+std::vector<Scalar> ForceModel<Scalar>::node_stiffness(const SphereModel<Scalar>& model) const {
+  std::vector<Scalar> k(std::size_t(model.num_nodes()), Scalar(0));
+  const auto links = model.links();
+  for (Index l = 0; l < model.num_links(); ++l) {
+    if (!m_force_link[std::size_t(l)]) continue;
+    const Scalar s = std::max(model.stiffness()[l], model.large_stiffness()[l]);
+    k[std::size_t(links(l, 0))] += s;
+    k[std::size_t(links(l, 1))] += s;
+  }
+  m_continuum.add_node_stiffness(model, k.data());
+  return k;
+}
 
 template <typename Scalar>
 ForceModel<Scalar>::ForceModel(const SphereModel<Scalar>& model, const Options& options) {
@@ -132,9 +316,31 @@ void ForceModel<Scalar>::refresh(const SphereModel<Scalar>& model) {
   if (m_asleep.size() != std::size_t(n)) m_asleep.assign(std::size_t(n), 0);
   m_immobile.resize(std::size_t(n));
   m_inverse_mass.resize(n);
+  // Links inside a continuum region carry no force: the region's elements do.
+  const Index L = model.num_links();
+  const auto links = model.links();
+  const auto region = model.node_regions();
+  m_force_link.assign(std::size_t(L), 1);
+  for (Index l = 0; l < L; ++l) {
+    const Index r = region[links(l, 0)];
+    if (r == region[links(l, 1)] && model.region(r).law == ForceLaw::continuum)
+      m_force_link[std::size_t(l)] = 0;
+  }
+  m_force_ranges.clear();
+  for (Index l = 0; l < L;) {
+    while (l < L && !m_force_link[std::size_t(l)]) ++l;
+    const Index begin = l;
+    while (l < L && m_force_link[std::size_t(l)]) ++l;
+    if (l > begin) m_force_ranges.emplace_back(begin, l);
+  }
   // Worst case: every other link active.
   m_ranges.reserve(std::size_t(model.num_links()) / 2 + 2);
   update_mobility(model);
+  m_continuum.refresh(model);
+  m_element_force.assign(m_continuum.empty() ? 0 : 3 * std::size_t(n), Scalar(0));
+  // Contacts name nodes of the old model: forget them; keep (at least 1024 of) the capacity.
+  clear_contacts();
+  reserve_contacts(1024);
   resize_scratch();
 }
 
@@ -149,12 +355,15 @@ void ForceModel<Scalar>::update_mobility(const SphereModel<Scalar>& model) noexc
   m_ranges.clear();
   const auto links = model.links();
   const Index L = model.num_links();
+  // Active: carries force and has a mobile end.
+  auto active = [&](Index l) {
+    return m_force_link[std::size_t(l)] &&
+           !(m_immobile[std::size_t(links(l, 0))] && m_immobile[std::size_t(links(l, 1))]);
+  };
   for (Index l = 0; l < L;) {
-    while (l < L && m_immobile[std::size_t(links(l, 0))] && m_immobile[std::size_t(links(l, 1))])
-      ++l;
+    while (l < L && !active(l)) ++l;
     const Index begin = l;
-    while (l < L && !(m_immobile[std::size_t(links(l, 0))] && m_immobile[std::size_t(links(l, 1))]))
-      ++l;
+    while (l < L && active(l)) ++l;
     if (l > begin) m_ranges.emplace_back(begin, l);
   }
 }
@@ -235,6 +444,16 @@ void ForceModel<Scalar>::evaluate(const SphereModel<Scalar>& model, const ConstP
   };
   detail::scatter_links(m_options.threads, model.num_nodes(), model.num_links(), f.data(),
                         m_scratch, init, kernel);
+  m_continuum.add_forces(xp, vp, f.data());
+  for (Index k = 0; k < m_num_contacts; ++k) {
+    const PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
+    Scalar fn;
+    Vector3<Scalar> slip;
+    const Vector3<Scalar> F =
+        detail::contact_force(c, xp, vp, detail::surface_advance(c, m_contact_time), fn, slip);
+    f.row(c.node) += F.transpose();
+    if (c.other >= 0) f.row(c.other) -= F.transpose();
+  }
 }
 
 template <typename Scalar>
@@ -242,8 +461,9 @@ Scalar ForceModel<Scalar>::elastic_energy(const SphereModel<Scalar>& model,
                                           const ConstPositionsRef& x) const noexcept {
   const detail::LinkData<Scalar> L(model);
   const Scalar* p = x.data();
-  Scalar sum(0);
+  Scalar sum = m_continuum.energy(p);
   for (Index l = 0; l < model.num_links(); ++l) {
+    if (!m_force_link[std::size_t(l)]) continue;
     const std::ptrdiff_t i = 3 * std::ptrdiff_t(L.ij[2 * l]);
     const std::ptrdiff_t j = 3 * std::ptrdiff_t(L.ij[2 * l + 1]);
     const Scalar dx = p[j] - p[i], dy = p[j + 1] - p[i + 1], dz = p[j + 2] - p[i + 2];
@@ -292,6 +512,11 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
   };
   auto kernel = [&](Index begin, Index end, Scalar* out) {
     for (Index l = begin; l < end; ++l) {
+      if (!m_force_link[std::size_t(l)]) {  // inside a continuum region: no force, no block
+        std::fill_n(blocks + std::ptrdiff_t(implicit_block_size) * l, implicit_block_size,
+                    Scalar(0));
+        continue;
+      }
       const detail::LinkState<Scalar> s = detail::link_state(L, l, x, v, dm);
       Scalar alpha, beta;
       detail::symmetric_stiffness(s, form, alpha, beta);
@@ -336,6 +561,43 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
   };
   detail::scatter_links(m_options.threads, model.num_nodes(), model.num_links(), diagonal.data(),
                         m_scratch, init_diag, kernel_diag);
+  if (!m_continuum.empty()) {
+    // The elements: h F into the rhs, then their tangent (-h^2 H v into the rhs, diag(A)).
+    std::fill(m_element_force.begin(), m_element_force.end(), Scalar(0));
+    m_continuum.add_forces(x, v, m_element_force.data());
+    Scalar* r = rhs.data();
+    for (std::size_t k = 0; k < m_element_force.size(); ++k) r[k] += h * m_element_force[k];
+    m_continuum.prepare_implicit(x, v, h, r, diagonal.data());
+  }
+  // Contacts: h F + h^2 dF/dx v (with the instrument's motion over the step) into the rhs, and
+  // the blocks B = (h^2 k + h c) n n^T + h c_t (I - n n^T) of those that push at the start.
+  // A contact that penetrates at the start takes its linear law (unclamped) for the whole step.
+  m_contacts_linearised = true;
+  for (Index k = 0; k < m_num_contacts; ++k) {
+    PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
+    Scalar fn;
+    Vector3<Scalar> slip, d, u;
+    const Scalar adv = detail::surface_advance(c, m_contact_time);
+    const bool active = detail::contact_depth(c, x, adv) > Scalar(0);
+    c.in_solve = active;
+    const Vector3<Scalar> F = detail::contact_force(c, x, v, adv, fn, slip, false);
+    detail::contact_kinematics(c, x, v, d, u);
+    c.normal_block = active ? h2 * c.stiffness + h * c.damping : Scalar(0);
+    c.tangent_block =
+        active ? h * c.friction * fn /
+                     std::sqrt(slip.squaredNorm() + c.friction_speed * c.friction_speed)
+               : Scalar(0);
+    Vector3<Scalar> r = h * F;
+    if (active) r -= h2 * c.stiffness * c.normal.dot(u) * c.normal;
+    rhs.row(c.node) += r.transpose();
+    if (c.other >= 0) rhs.row(c.other) -= r.transpose();
+    for (int a = 0; a < 3; ++a) {
+      const Scalar n2 = c.normal[a] * c.normal[a];
+      const Scalar diag = c.tangent_block + (c.normal_block - c.tangent_block) * n2;
+      diagonal(c.node, a) += diag;
+      if (c.other >= 0) diagonal(c.other, a) += diag;
+    }
+  }
   for (Index i = 0; i < model.num_nodes(); ++i) {
     if (m_immobile[std::size_t(i)]) {
       rhs.row(i).setZero();
@@ -357,7 +619,7 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
     out[1] = md * mass[i] * pp[k + 1];
     out[2] = md * mass[i] * pp[k + 2];
   };
-  auto kernel = [&](Index begin, Index end, Scalar* out) {
+  auto kernel_range = [&](Index begin, Index end, Scalar* out) {
     for (Index l = begin; l < end; ++l) {
       const Scalar* B = blocks + std::ptrdiff_t(implicit_block_size) * l;
       const std::ptrdiff_t i = 3 * std::ptrdiff_t(ij[2 * l]);
@@ -373,8 +635,26 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
       out[j + 2] += gz;
     }
   };
+  // The force links only (the others' blocks are zero).
+  auto kernel = [&](Index begin, Index end, Scalar* out) {
+    for (const auto& [a, b] : m_force_ranges) {
+      const Index lo = std::max(a, begin), hi = std::min(b, end);
+      if (lo < hi) kernel_range(lo, hi, out);
+    }
+  };
   detail::scatter_links(m_options.threads, model.num_nodes(), model.num_links(), y.data(),
                         m_scratch, init, kernel);
+  m_continuum.apply_implicit(pp, y.data());
+  for (Index k = 0; k < m_num_contacts; ++k) {
+    const PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
+    if (!(c.normal_block > Scalar(0)) && !(c.tangent_block > Scalar(0))) continue;
+    Vector3<Scalar> q = p.row(c.node).transpose();
+    if (c.other >= 0) q -= p.row(c.other).transpose();
+    const Vector3<Scalar> g =
+        c.tangent_block * q + (c.normal_block - c.tangent_block) * c.normal.dot(q) * c.normal;
+    y.row(c.node) += g.transpose();
+    if (c.other >= 0) y.row(c.other) -= g.transpose();
+  }
   for (Index i = 0; i < model.num_nodes(); ++i)
     if (m_immobile[std::size_t(i)]) y.row(i).setZero();
 }
@@ -391,6 +671,7 @@ typename ForceModel<Scalar>::SparseMatrix ForceModel<Scalar>::stiffness_matrix(
   const auto X = model.positions();
   const auto V = model.velocities();
   for (Index l = 0; l < model.num_links(); ++l) {
+    if (!m_force_link[std::size_t(l)]) continue;
     const Index i = L.ij[2 * l], j = L.ij[2 * l + 1];
     Matrix3<Scalar> K;
     if (form == JacobianForm::exact) {
@@ -412,6 +693,40 @@ typename ForceModel<Scalar>::SparseMatrix ForceModel<Scalar>::stiffness_matrix(
         trip.emplace_back(3 * j + r, 3 * j + c, -K(r, c));
       }
   }
+  // Contacts pushing at this state: -k n n^T between the sphere and the instrument (or the other).
+  auto contact_pairs = [&](auto block) {
+    for (Index k = 0; k < m_num_contacts; ++k) {
+      const PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
+      Scalar fn;
+      Vector3<Scalar> slip;
+      const Scalar adv = detail::surface_advance(c, m_contact_time);
+      (void)detail::contact_force(c, x, v, adv, fn, slip);
+      if (!(detail::contact_depth(c, x, adv) > Scalar(0))) continue;
+      const Matrix3<Scalar> B = block(c, fn, slip);
+      for (int r = 0; r < 3; ++r)
+        for (int s = 0; s < 3; ++s) {
+          trip.emplace_back(3 * c.node + r, 3 * c.node + s, -B(r, s));
+          if (c.other >= 0) {
+            trip.emplace_back(3 * c.other + r, 3 * c.other + s, -B(r, s));
+            trip.emplace_back(3 * c.node + r, 3 * c.other + s, B(r, s));
+            trip.emplace_back(3 * c.other + r, 3 * c.node + s, B(r, s));
+          }
+        }
+    }
+  };
+  contact_pairs([](const PenaltyContact<Scalar>& c, Scalar, const Vector3<Scalar>&) {
+    return Matrix3<Scalar>(c.stiffness * c.normal * c.normal.transpose());
+  });
+  if (!m_continuum.empty()) {
+    detail::ContinuumTerm<Scalar> elements = m_continuum;  // its scratch is used
+    if (form == JacobianForm::exact) {
+      elements.exact_stiffness_triplets(x, trip);
+    } else {
+      std::vector<Eigen::Triplet<Scalar>> h;
+      elements.tangent_triplets(x, h);
+      for (const auto& t : h) trip.emplace_back(t.row(), t.col(), -t.value());
+    }
+  }
   SparseMatrix K(3 * n, 3 * n);
   K.setFromTriplets(trip.begin(), trip.end());
   return K;
@@ -427,6 +742,7 @@ typename ForceModel<Scalar>::SparseMatrix ForceModel<Scalar>::damping_matrix(
   std::vector<Eigen::Triplet<Scalar>> trip;
   trip.reserve(36 * std::size_t(model.num_links()));
   for (Index l = 0; l < model.num_links(); ++l) {
+    if (!m_force_link[std::size_t(l)]) continue;
     const Index i = links(l, 0), j = links(l, 1);
     const Matrix3<Scalar> D =
         model.link(l)
@@ -444,6 +760,36 @@ typename ForceModel<Scalar>::SparseMatrix ForceModel<Scalar>::damping_matrix(
   for (Index i = 0; i < n; ++i)
     for (int c = 0; c < 3; ++c)
       trip.emplace_back(3 * i + c, 3 * i + c, -m_options.drag * model.masses()[i]);
+  if (!m_continuum.empty()) {
+    std::vector<Eigen::Triplet<Scalar>> d;
+    m_continuum.damping_triplets(model.positions().data(), d);
+    for (const auto& t : d) trip.emplace_back(t.row(), t.col(), -t.value());
+  }
+  // Contacts pushing at this state: -c n n^T - c_t (I - n n^T), c_t the friction's slope at zero
+  // slip speed scaled by the regularisation (its linearisation in the implicit step).
+  const Scalar* xp = model.positions().data();
+  const Scalar* vp = model.velocities().data();
+  for (Index k = 0; k < m_num_contacts; ++k) {
+    const PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
+    Scalar fn;
+    Vector3<Scalar> slip;
+    const Scalar adv = detail::surface_advance(c, m_contact_time);
+    (void)detail::contact_force(c, xp, vp, adv, fn, slip);
+    if (!(detail::contact_depth(c, xp, adv) > Scalar(0))) continue;
+    const Scalar ct =
+        c.friction * fn / std::sqrt(slip.squaredNorm() + c.friction_speed * c.friction_speed);
+    const Matrix3<Scalar> nn = c.normal * c.normal.transpose();
+    const Matrix3<Scalar> B = c.damping * nn + ct * (Matrix3<Scalar>::Identity() - nn);
+    for (int r = 0; r < 3; ++r)
+      for (int s = 0; s < 3; ++s) {
+        trip.emplace_back(3 * c.node + r, 3 * c.node + s, -B(r, s));
+        if (c.other >= 0) {
+          trip.emplace_back(3 * c.other + r, 3 * c.other + s, -B(r, s));
+          trip.emplace_back(3 * c.node + r, 3 * c.other + s, B(r, s));
+          trip.emplace_back(3 * c.other + r, 3 * c.node + s, B(r, s));
+        }
+      }
+  }
   SparseMatrix D(3 * n, 3 * n);
   D.setFromTriplets(trip.begin(), trip.end());
   return D;

@@ -125,6 +125,7 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_assembled(SphereModel<Sc
     const Eigen::Map<const Vec> vflat(model.velocities().data(), 3 * n);
     const Eigen::Map<const Vec> fflat(m_q.data(), 3 * n);
     Vec b = dt * fflat + (dt * dt) * (K * vflat);
+    forces.add_contact_linearisation(model, dt, b.data());
     for (Index i = 0; i < n; ++i)
       if (fixed[std::size_t(i)]) b.template segment<3>(3 * i).setZero();
 

@@ -63,7 +63,8 @@ void Simulation<Scalar>::refresh() {
   const auto k = m_model.stiffness();
   const auto l0 = m_model.rest_lengths();
   const Scalar s = d.energy_floor_strain;
-  m_energy_floor = Scalar(0.5) * s * s * k.dot(l0.cwiseProduct(l0));
+  m_energy_floor = Scalar(0.5) * s * s *
+                   (k.dot(l0.cwiseProduct(l0)) + m_forces.element_energy_scale());
   // Sleeping bookkeeping (every region awake after a refresh).
   const Index nr = m_model.num_regions(), nn = m_model.num_nodes();
   const auto region = m_model.node_regions();
@@ -97,6 +98,7 @@ void Simulation<Scalar>::refresh() {
   m_node_asleep.assign(std::size_t(nn), 0);
   m_quiet_time.assign(std::size_t(nr), Scalar(0));
   m_sleep_force.setZero(nn, 3);
+  m_load.setZero(nn, 3);
   m_forces.set_asleep(m_node_asleep, m_model);
   const auto& sp = m_options.sleep;
   if (!(sp.sleep_speed >= 0) || !(sp.sleep_time >= 0) || !(sp.wake_speed >= 0) ||
@@ -125,14 +127,24 @@ void Simulation<Scalar>::set_region_asleep(Index r, bool asleep) noexcept {
   m_region_asleep[std::size_t(r)] = asleep ? 1 : 0;
   m_quiet_time[std::size_t(r)] = Scalar(0);
   auto v = m_model.velocities();
-  const auto ext = m_forces.external_forces();
   for (Index k = m_region_start[std::size_t(r)]; k < m_region_start[std::size_t(r) + 1]; ++k) {
     const Index i = m_region_nodes[std::size_t(k)];
     m_node_asleep[std::size_t(i)] = asleep ? 1 : 0;
     if (asleep) {
       v.row(i).setZero();
-      m_sleep_force.row(i) = ext.row(i);
+      m_sleep_force.row(i) = m_load.row(i);
     }
+  }
+}
+
+// The load on each node: external forces plus the penalty contacts' last forces.
+template <typename Scalar>
+void Simulation<Scalar>::update_load() noexcept {
+  m_load = m_forces.external_forces();  // same size: no allocation
+  const PenaltyContact<Scalar>* c = m_forces.contacts();
+  for (Index k = 0; k < m_forces.num_contacts(); ++k) {
+    m_load.row(c[k].node) += c[k].force.transpose();
+    if (c[k].other >= 0) m_load.row(c[k].other) -= c[k].force.transpose();
   }
 }
 
@@ -140,7 +152,7 @@ void Simulation<Scalar>::set_region_asleep(Index r, bool asleep) noexcept {
 template <typename Scalar>
 bool Simulation<Scalar>::wake_regions() noexcept {
   bool changed = false;
-  const auto ext = m_forces.external_forces();
+  update_load();
   const auto v = m_model.velocities();
   const Scalar wake2 = m_options.sleep.wake_speed * m_options.sleep.wake_speed;
   for (Index r = 0; r < m_model.num_regions(); ++r) {
@@ -150,7 +162,7 @@ bool Simulation<Scalar>::wake_regions() noexcept {
     for (Index k = m_region_start[std::size_t(r)]; k < m_region_start[std::size_t(r) + 1] && !wake;
          ++k) {
       const Index i = m_region_nodes[std::size_t(k)];
-      wake = (ext.row(i) - m_sleep_force.row(i)).squaredNorm() > tol2;
+      wake = (m_load.row(i) - m_sleep_force.row(i)).squaredNorm() > tol2;
     }
     for (Index k = m_border_start[std::size_t(r)]; k < m_border_start[std::size_t(r) + 1] && !wake;
          ++k)
@@ -167,6 +179,7 @@ bool Simulation<Scalar>::wake_regions() noexcept {
 template <typename Scalar>
 void Simulation<Scalar>::sleep_regions(Scalar dt) noexcept {
   bool changed = false;
+  update_load();
   const auto v = m_model.velocities();
   const Scalar sleep2 = m_options.sleep.sleep_speed * m_options.sleep.sleep_speed;
   for (Index r = 0; r < m_model.num_regions(); ++r) {
@@ -309,21 +322,31 @@ StepReport<Scalar> Simulation<Scalar>::step(Scalar dt) noexcept {
     if (policy.check_energy) reset_energy_reference();
   }
   if (m_options.sleep.enabled && wake_regions()) m_forces.set_asleep(m_node_asleep, m_model);
+  if (!m_integrator->implicit())
+    report.softened_contacts = m_forces.limit_contact_stiffness(m_model, dt);
+  const Scalar contact_time = m_forces.contact_time();
+  m_forces.start_contacts(m_model);
   for (int level = 0; level <= policy.max_substep_halvings; ++level) {
     const int n = 1 << level;
     const Scalar h = dt / Scalar(n);
     bool good = true;
     int iterations = 0;
     for (int s = 0; s < n && good; ++s) {
+      // The instruments' surfaces move through the step: contact time at this substep's start.
+      m_forces.set_contact_time(contact_time + Scalar(s) * h);
       const IntegratorResult r = m_integrator->step(m_model, m_forces, h);
       iterations += r.iterations;
       good = r.ok;
     }
+    m_forces.set_contact_time(contact_time + dt);
     good = good && x.allFinite() && v.allFinite();
+    if (good) m_forces.finish_contacts(m_model);
     Scalar work(0), energy = std::numeric_limits<Scalar>::quiet_NaN();
     if (good && policy.check_energy) {
-      // External forces are constant over the step, so their work is exact.
-      work = ext.cwiseProduct(x - m_saved_x).sum();
+      // External forces are constant over the step, so their work is exact; the contacts' is
+      // taken at their end-of-step force, an upper bound for a contact that pushes harder as it
+      // is pressed.
+      work = ext.cwiseProduct(x - m_saved_x).sum() + m_forces.contact_work(m_model, m_saved_x);
       energy = total_energy();
       const Scalar budget = m_energy_reference + m_external_work + work;
       good = std::isfinite(energy) &&
@@ -338,11 +361,13 @@ StepReport<Scalar> Simulation<Scalar>::step(Scalar dt) noexcept {
       save_state();
       report.status = level == 0 ? StepStatus::ok : StepStatus::recovered;
       report.energy = energy;
+      report.inverted_elements = m_forces.inverted_elements(x);
       return report;
     }
     restore_state();
     m_integrator->reset();  // its warm start came from the rejected state
   }
+  m_forces.set_contact_time(contact_time);
   report.status = StepStatus::diverged;
   return report;
 }

@@ -25,13 +25,53 @@ bool all_finite(const Scalar* p, std::size_t n) {
 }  // namespace detail
 
 template <typename Scalar>
-Index SphereModel<Scalar>::add_region(std::string name, const Material<Scalar>& material) {
+Index SphereModel<Scalar>::add_region(std::string name, const Material<Scalar>& material,
+                                      ForceLaw law) {
   if (name.empty()) throw Error("", "region " + std::to_string(m_regions.size()), "name is empty");
   for (const auto& r : m_regions)
     if (r.name == name) throw Error("", "region '" + name + "'", "a region of that name exists");
   material.validate("region '" + name + "'");
-  m_regions.push_back({std::move(name), material});
+  if (law != ForceLaw::links && law != ForceLaw::continuum)
+    throw Error("", "region '" + name + "'", "unknown force law " + std::to_string(int(law)));
+  m_regions.push_back({std::move(name), material, law});
   return static_cast<Index>(m_regions.size() - 1);
+}
+
+template <typename Scalar>
+void SphereModel<Scalar>::set_region_law(Index region, ForceLaw law) {
+  if (region < 0 || region >= num_regions())
+    throw Error("", "region " + std::to_string(region), "index out of range");
+  if (law != ForceLaw::links && law != ForceLaw::continuum)
+    throw Error("", "region '" + m_regions[std::size_t(region)].name + "'",
+                "unknown force law " + std::to_string(int(law)));
+  m_regions[std::size_t(region)].law = law;
+}
+
+template <typename Scalar>
+void SphereModel<Scalar>::set_region_material(Index region, const Material<Scalar>& material) {
+  if (region < 0 || region >= num_regions())
+    throw Error("", "region " + std::to_string(region), "index out of range");
+  material.validate("region '" + m_regions[std::size_t(region)].name + "'");
+  m_regions[std::size_t(region)].material = material;
+}
+
+template <typename Scalar>
+Index SphereModel<Scalar>::add_tetrahedron(Index a, Index b, Index c, Index d) {
+  const Index t = num_tetrahedra();
+  m_tetrahedron.insert(m_tetrahedron.end(), {a, b, c, d});
+  try {
+    check_tetrahedron(t);
+  } catch (...) {
+    m_tetrahedron.resize(4 * std::size_t(t));
+    throw;
+  }
+  return t;
+}
+
+template <typename Scalar>
+bool SphereModel<Scalar>::has_continuum() const noexcept {
+  return std::any_of(m_regions.begin(), m_regions.end(),
+                     [](const Region<Scalar>& r) { return r.law == ForceLaw::continuum; });
 }
 
 template <typename Scalar>
@@ -236,6 +276,38 @@ void SphereModel<Scalar>::check_node(Index i) const {
 }
 
 template <typename Scalar>
+void SphereModel<Scalar>::check_tetrahedron(Index t) const {
+  const auto k = 4 * std::size_t(t);
+  const Index n = num_nodes();
+  const Index* v = &m_tetrahedron[k];
+  auto fail = [&](const std::string& why) {
+    throw Error("",
+                "tetrahedron " + std::to_string(t) + " (nodes " + std::to_string(v[0]) + " " +
+                    std::to_string(v[1]) + " " + std::to_string(v[2]) + " " +
+                    std::to_string(v[3]) + ")",
+                why);
+  };
+  for (int a = 0; a < 4; ++a) {
+    if (v[a] < 0 || v[a] >= n) fail("node index out of range [0, " + std::to_string(n) + ")");
+    for (int b = 0; b < a; ++b)
+      if (v[a] == v[b]) fail("repeats a node");
+  }
+  const Index r = m_node_region[std::size_t(v[0])];
+  for (int a = 1; a < 4; ++a)
+    if (m_node_region[std::size_t(v[a])] != r) fail("its nodes belong to different regions");
+  const auto x = rest_positions();
+  const Vector3<Scalar> o = x.row(v[0]).transpose();
+  const Vector3<Scalar> e1 = x.row(v[1]).transpose() - o, e2 = x.row(v[2]).transpose() - o,
+                        e3 = x.row(v[3]).transpose() - o;
+  const Scalar six_v = e1.dot(e2.cross(e3));
+  const Scalar edge = std::max({e1.norm(), e2.norm(), e3.norm()});
+  // |V| at least 1e-12 of the longest edge cubed, as TetrahedralMesh::validate.
+  if (!(six_v > Scalar(6e-12) * edge * edge * edge))
+    fail("is inverted or degenerate at rest (6V = " + detail::format_number(double(six_v)) +
+         " m^3)");
+}
+
+template <typename Scalar>
 void SphereModel<Scalar>::check_link(Index l) const {
   const auto k = std::size_t(l);
   const Index i = m_link[2 * k], j = m_link[2 * k + 1];
@@ -277,6 +349,20 @@ void SphereModel<Scalar>::validate() const {
     if (!seen.insert((a << 32) | b).second)
       throw Error("", describe_link(l), "duplicates an earlier link between the same nodes");
   }
+  // Tetrahedra: each checked; a region with the continuum law needs every node in one (a node
+  // in no element would carry no force).
+  std::vector<std::uint8_t> in_element(m_mass.size(), 0);
+  for (Index t = 0; t < num_tetrahedra(); ++t) {
+    check_tetrahedron(t);
+    for (int k = 0; k < 4; ++k) in_element[std::size_t(m_tetrahedron[4 * std::size_t(t) + k])] = 1;
+  }
+  for (Index i = 0; i < num_nodes(); ++i) {
+    const Region<Scalar>& r = m_regions[std::size_t(m_node_region[std::size_t(i)])];
+    if (r.law == ForceLaw::continuum && !in_element[std::size_t(i)])
+      throw Error("", describe_node(i),
+                  "is in no tetrahedron, but region '" + r.name +
+                      "' uses the continuum law (which acts on tetrahedra)");
+  }
 }
 
 template <typename Scalar>
@@ -286,8 +372,11 @@ SphereModel<Other> SphereModel<Scalar>::cast() const {
   for (const auto& r : m_regions) {
     const auto& m = r.material;
     out.m_regions.push_back(
-        {r.name, Material<Other>{Other(m.density), Other(m.youngs_modulus), Other(m.viscosity),
-                                 Other(m.large_strain_modulus), Other(m.switch_strain)}});
+        {r.name,
+         Material<Other>{Other(m.density), Other(m.youngs_modulus), Other(m.viscosity),
+                         Other(m.large_strain_modulus), Other(m.switch_strain),
+                         Other(m.poisson_ratio)},
+         r.law});
   }
   auto conv = [](const std::vector<Scalar>& v) { return std::vector<Other>(v.begin(), v.end()); };
   out.m_position = conv(m_position);
@@ -303,6 +392,7 @@ SphereModel<Other> SphereModel<Scalar>::cast() const {
   out.m_damping = conv(m_damping);
   out.m_large_stiffness = conv(m_large_stiffness);
   out.m_switch_strain = conv(m_switch_strain);
+  out.m_tetrahedron = m_tetrahedron;
   return out;
 }
 

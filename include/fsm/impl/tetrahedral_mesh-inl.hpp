@@ -110,8 +110,18 @@ PartRange add_tetrahedral_part(SphereModel<Scalar>& model, const TetrahedralMesh
     staged.add_link(range.first_node + p, range.first_node + q,
                     tetrahedral_link(reg.material, vol, len));
   }
+  // The tetrahedra, positively oriented (the continuum law acts on them).
+  range.first_tetrahedron = staged.num_tetrahedra();
+  for (Index t = 0; t < nt; ++t) {
+    Index a = mesh.tetrahedra(t, 0), b = mesh.tetrahedra(t, 1), c = mesh.tetrahedra(t, 2),
+          d = mesh.tetrahedra(t, 3);
+    if (mesh.signed_volume(t) < Scalar(0)) std::swap(c, d);
+    staged.add_tetrahedron(range.first_node + a, range.first_node + b, range.first_node + c,
+                           range.first_node + d);
+  }
   range.num_nodes = nv;
   range.num_links = staged.num_links() - range.first_link;
+  range.num_tetrahedra = nt;
   model = std::move(staged);
   return range;
 }

@@ -194,14 +194,23 @@ void ServoLoop::physics_step(double t) noexcept {
   const DeviceSample& d = m_device_buffer.front();
   const ServoOptions& o = m_options;
   const double h = m_period;
-  // Proxy: m dv/dt = k (x_d - x) + b (v_d - v) + f_tissue, the coupling implicit:
-  // v' (m + h b + h^2 k) = m v + h (k (x_d - x) + b v_d + f_tissue).
+  // Proxy: m dv/dt = k (x_d - x) + b (v_d - v) + f_tissue, backward Euler in the coupling and in
+  // the tissue's contact force, linearised about the last step's end as
+  // f_tissue(x + h v', v') = f - K h v' - C (v' - v) (K, C: the wrench's contact stiffness and
+  // damping; the contacts are far stiffer than the coupling, so an explicit tissue force would
+  // make the proxy ring):
+  // (m + h (b + C) + h^2 (k + K)) v' = m v + h (k (x_d - x) + b v_d + f + C v).
   auto& ins = m_contacts.instrument(m_instrument);
-  const Vector3<double> tissue = m_contacts.wrench(m_instrument).force;
+  const auto& w = m_contacts.wrench(m_instrument);
   const double k = o.coupling_stiffness, b = o.coupling_damping, m = o.proxy_mass;
-  Vector3<double> v =
-      (m * m_proxy.velocity + h * (k * (d.position - m_proxy.position) + b * d.velocity + tissue)) /
-      (m + h * b + h * h * k);
+  const Eigen::Matrix3d A = (m + h * b + h * h * k) * Eigen::Matrix3d::Identity() +
+                            h * w.damping + h * h * w.stiffness;
+  const Vector3<double> rhs =
+      m * m_proxy.velocity +
+      h * (k * (d.position - m_proxy.position) + b * d.velocity + w.force +
+           w.damping * m_proxy.velocity);
+  // A is symmetric positive definite (m > 0, K and C positive semi-definite).
+  Vector3<double> v = A.llt().solve(rhs);
   if (!v.allFinite()) v.setZero();
   m_proxy.velocity = v;
   m_proxy.position += h * v;
@@ -210,9 +219,11 @@ void ServoLoop::physics_step(double t) noexcept {
   ins.linear_velocity = v;
   ins.angular_velocity.setZero();
 
-  m_sim.external_forces().setZero();
-  m_contacts.compute(m_sim.model(), m_sim.external_forces());
+  // The contacts at the proxy's new pose go into the step (implicitly with implicit Euler); the
+  // wrench the proxy feels next tick is their force at the end of the step.
+  m_contacts.compute(m_sim.model(), m_sim.forces());
   const StepReport report = m_sim.step(h);
+  m_contacts.collect(m_sim.forces());
   if (!report.advanced()) {
     ++m_diverged;
     trip();

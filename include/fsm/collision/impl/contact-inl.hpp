@@ -15,15 +15,13 @@ ContactSolver<Scalar>::ContactSolver(const SphereModel<Scalar>& model,
                                      const ContactOptions<Scalar>& options)
     : m_options(options) {
   const auto& o = m_options;
-  if (!(o.stiffness_scale > 0) || !(o.damping_ratio >= 0) || !(o.friction_speed > 0) ||
-      !(o.part_friction >= 0) || o.max_contacts < 1 || !(o.verlet_skin >= 0) ||
-      !(o.time_step >= 0) || !std::isfinite(o.time_step) ||
-      (o.time_step > 0 && !(o.damping_ratio <= 1)))
-    throw Error(
-        "", "contact options",
-        "stiffness_scale and friction_speed must be positive, damping_ratio and "
-        "part_friction non-negative (damping_ratio at most 1 with a time_step), verlet_skin "
-        "and time_step finite and non-negative, max_contacts at least 1");
+  if (!(o.stiffness_ratio > 0) || !std::isfinite(o.stiffness_ratio) || !(o.damping_ratio >= 0) ||
+      !std::isfinite(o.damping_ratio) || !(o.friction_speed > 0) || !(o.part_friction >= 0) ||
+      o.max_contacts < 1 || !(o.verlet_skin >= 0) || !std::isfinite(o.verlet_skin))
+    throw Error("", "contact options",
+                "stiffness_ratio and friction_speed must be positive, damping_ratio and "
+                "part_friction non-negative, verlet_skin finite and non-negative, max_contacts "
+                "at least 1");
   refresh(model);
 }
 
@@ -56,29 +54,25 @@ void ContactSolver<Scalar>::refresh(const SphereModel<Scalar>& model) {
     m_adj[std::size_t(fill[std::size_t(links(l, 0))]++)] = links(l, 1);
     m_adj[std::size_t(fill[std::size_t(links(l, 1))]++)] = links(l, 0);
   }
+  // Contact stiffness: stiffness_ratio times the sphere's own tissue stiffness (links and
+  // elements, as the force model sees them); a sphere with none (a loose one) gets its weight in
+  // a 1 ms step's terms, m / (1 ms)^2.
+  const std::vector<Scalar> tissue = ForceModel<Scalar>(model).node_stiffness(model);
   m_k.resize(std::size_t(n));
-  m_budget.resize(std::size_t(n));
-  m_pair_count.assign(std::size_t(n), 0);
+  m_contact_radius.resize(std::size_t(n));
+  std::vector<std::uint8_t> in_element(std::size_t(n), 0);
+  for (Index t = 0; t < model.num_tetrahedra(); ++t)
+    for (int c = 0; c < 4; ++c) in_element[std::size_t(model.tetrahedra()(t, c))] = 1;
   std::vector<Index> count(std::size_t(model.num_regions()), 0);
-  const Scalar h = m_options.time_step;
   for (Index i = 0; i < n; ++i) {
-    const Index r = model.node_regions()[i];
-    m_k[std::size_t(i)] =
-        m_options.stiffness_scale * model.region(r).material.youngs_modulus * model.radii()[i];
-    m_budget[std::size_t(i)] =
-        h > 0 ? model.masses()[i] / (h * h) : std::numeric_limits<Scalar>::infinity();
-    ++count[std::size_t(r)];
+    const Scalar k = tissue[std::size_t(i)] > Scalar(0) ? tissue[std::size_t(i)]
+                                                        : model.masses()[i] / Scalar(1e-6);
+    m_k[std::size_t(i)] = m_options.stiffness_ratio * k;
+    m_contact_radius[std::size_t(i)] =
+        m_options.tetrahedral_surface && in_element[std::size_t(i)] ? Scalar(0)
+                                                                    : model.radii()[i];
+    ++count[std::size_t(model.node_regions()[i])];
   }
-  // An instrument presses a few spheres, locally: the implicit step's matrix M + h^2 K holds
-  // their links too, so an instrument's contact may add what a node's links hold. Part contacts
-  // act between whole parts (a fibroid against the body moves as one), where links do not help:
-  // they get the mass term only.
-  m_tool_budget = m_budget;
-  if (h > 0)
-    for (Index l = 0; l < model.num_links(); ++l) {
-      m_tool_budget[std::size_t(links(l, 0))] += model.stiffness()[l];
-      m_tool_budget[std::size_t(links(l, 1))] += model.stiffness()[l];
-    }
   m_dominant_region =
       count.empty() ? -1 : Index(std::max_element(count.begin(), count.end()) - count.begin());
   m_contacts.assign(std::size_t(m_options.max_contacts), Contact<Scalar>{});
@@ -201,20 +195,77 @@ void ContactSolver<Scalar>::record(const Contact<Scalar>& c) noexcept {
 }
 
 template <typename Scalar>
+void ContactSolver<Scalar>::record_and_add(const PenaltyContact<Scalar>& c) noexcept {
+  record({c.node, c.instrument, c.other, c.normal, c.depth, c.point, c.force});
+  if (c.instrument >= 0) {
+    Wrench<Scalar>& w = m_wrenches[std::size_t(c.instrument)];
+    w.force -= c.force;
+    w.torque -= (c.point - m_instruments[std::size_t(c.instrument)].pose.position).cross(c.force);
+    if (c.force.dot(c.normal) > Scalar(0)) {  // pushing: its normal stiffness and damping count
+      const Matrix3<Scalar> nn = c.normal * c.normal.transpose();
+      w.stiffness += c.stiffness * nn;
+      w.damping += c.damping * nn;
+    }
+  }
+}
+
+template <typename Scalar>
+bool ContactSolver<Scalar>::compute(const SphereModel<Scalar>& model,
+                                    ForceModel<Scalar>& forces) noexcept {
+  forces.clear_contacts();
+  m_num_contacts = 0;
+  m_overflow = false;
+  m_candidates = m_narrow_tests = 0;
+  for (auto& w : m_wrenches) w = Wrench<Scalar>{};
+  if (num_nodes() != model.num_nodes()) return false;
+  detect(model, [&](const PenaltyContact<Scalar>& c) {
+    if (!forces.add_contact(c)) {
+      m_overflow = true;  // beyond the force model's capacity: not integrated, not recorded
+      return;
+    }
+    record_and_add(c);
+  });
+  m_filled = &forces;
+  return true;
+}
+
+template <typename Scalar>
+bool ContactSolver<Scalar>::collect(const ForceModel<Scalar>& forces) noexcept {
+  if (m_filled != &forces) return false;
+  m_num_contacts = 0;
+  for (auto& w : m_wrenches) w = Wrench<Scalar>{};
+  const PenaltyContact<Scalar>* c = forces.contacts();
+  for (Index k = 0; k < forces.num_contacts(); ++k) record_and_add(c[k]);
+  return true;
+}
+
+template <typename Scalar>
 bool ContactSolver<Scalar>::compute(const SphereModel<Scalar>& model,
                                     Eigen::Ref<Positions<Scalar>> forces) noexcept {
   m_num_contacts = 0;
   m_overflow = false;
   m_candidates = m_narrow_tests = 0;
+  m_filled = nullptr;
   for (auto& w : m_wrenches) w = Wrench<Scalar>{};
   if (num_nodes() != model.num_nodes() || forces.rows() != model.num_nodes()) return false;
+  detect(model, [&](const PenaltyContact<Scalar>& c) {
+    forces.row(c.node) += c.force.transpose();
+    if (c.other >= 0) forces.row(c.other) -= c.force.transpose();
+    record_and_add(c);
+  });
+  return true;
+}
+
+template <typename Scalar>
+template <typename Emit>
+void ContactSolver<Scalar>::detect(const SphereModel<Scalar>& model, Emit&& emit) noexcept {
   update_hash(model);
   const auto x = model.positions();
   const auto v = model.velocities();
-  const auto radius = model.radii();
   const auto mass = model.masses();
-  const Scalar zeta = m_options.damping_ratio,
-               eps2 = m_options.friction_speed * m_options.friction_speed;
+  const Scalar zeta = m_options.damping_ratio;
+  const Scalar* xp = x.data();
+  const Scalar* vp = v.data();
 
   // Instruments against spheres.
   for (std::size_t k = 0; k < m_instruments.size(); ++k) {
@@ -223,34 +274,35 @@ bool ContactSolver<Scalar>::compute(const SphereModel<Scalar>& model,
     auto [lo, hi] = bounding_box(ins.shape, ins.pose);
     lo.array() -= m_max_radius;
     hi.array() += m_max_radius;
-    Wrench<Scalar>& w = m_wrenches[k];
     for_each_in_box(lo, hi, [&](Index j) {
       ++m_candidates;
       ++m_narrow_tests;
       const Vector3<Scalar> c = x.row(j).transpose();
-      const auto hit = contact(ins.shape, ins.pose, c, radius[j]);
+      const auto hit = contact(ins.shape, ins.pose, c, m_contact_radius[std::size_t(j)]);
       if (!hit) return;
-      const Vector3<Scalar>& n = hit->normal;
-      const Vector3<Scalar> arm = hit->point - ins.pose.position;
-      const Vector3<Scalar> v_tool = ins.linear_velocity + ins.angular_velocity.cross(arm);
-      const Vector3<Scalar> v_rel = v.row(j).transpose() - v_tool;
-      const Scalar vn = v_rel.dot(n);
-      const Scalar kc = std::min(m_k[std::size_t(j)], Scalar(0.5) * m_tool_budget[std::size_t(j)]);
-      const Scalar cd = Scalar(2) * zeta * std::sqrt(kc * mass[j]);
-      const Scalar fn = std::max(Scalar(0), kc * hit->depth - cd * vn);
-      const Vector3<Scalar> vt = v_rel - vn * n;
-      const Vector3<Scalar> F =
-          fn * n - (ins.friction * fn / std::sqrt(vt.squaredNorm() + eps2)) * vt;
-      if (!F.allFinite()) return;
-      forces.row(j) += F.transpose();
-      w.force -= F;
-      w.torque -= arm.cross(F);
-      record({j, Index(k), -1, n, hit->depth, hit->point, F});
+      PenaltyContact<Scalar> pc;
+      pc.node = j;
+      pc.instrument = Index(k);
+      pc.normal = hit->normal;
+      pc.point = hit->point;
+      pc.depth = hit->depth;
+      pc.stiffness = m_k[std::size_t(j)];
+      pc.damping = Scalar(2) * zeta * std::sqrt(pc.stiffness * mass[j]);
+      pc.friction = ins.friction;
+      pc.friction_speed = m_options.friction_speed;
+      pc.surface_velocity =
+          ins.linear_velocity + ins.angular_velocity.cross(hit->point - ins.pose.position);
+      pc.node_start = c;
+      Scalar fn;
+      Vector3<Scalar> slip;
+      pc.force = fsm::detail::contact_force(pc, xp, vp, Scalar(0), fn, slip);
+      if (!pc.normal.allFinite() || !pc.point.allFinite()) return;
+      emit(pc);
     });
   }
 
   // Parts against parts (and folding within a part, when asked).
-  if (!m_options.part_contact && !m_options.self_contact) return true;
+  if (!m_options.part_contact && !m_options.self_contact) return;
   const Scalar skin = m_options.verlet_skin;
   bool rebuild = !m_list_valid || !(skin > 0);
   if (!rebuild) {  // has any sphere moved more than half the skin since the list was built?
@@ -261,10 +313,7 @@ bool ContactSolver<Scalar>::compute(const SphereModel<Scalar>& model,
   if (rebuild) {
     m_pairs.clear();
     bool fits = true;
-    std::fill(m_pair_count.begin(), m_pair_count.end(), 0);
     for_each_part_pair(model, skin, [&](Index i, Index j) {
-      ++m_pair_count[std::size_t(i)];
-      ++m_pair_count[std::size_t(j)];
       if (m_pairs.size() < m_pairs.capacity())
         m_pairs.emplace_back(i, j);
       else
@@ -275,12 +324,11 @@ bool ContactSolver<Scalar>::compute(const SphereModel<Scalar>& model,
     ++m_rebuilds;
     if (!fits) {  // rare: more candidate pairs than reserved; handle this step by scanning
       for_each_part_pair(model, Scalar(0),
-                         [&](Index i, Index j) { part_contact(model, i, j, forces); });
-      return true;
+                         [&](Index i, Index j) { part_contact(model, i, j, emit); });
+      return;
     }
   }
-  for (const auto& [i, j] : m_pairs) part_contact(model, i, j, forces);
-  return true;
+  for (const auto& [i, j] : m_pairs) part_contact(model, i, j, emit);
 }
 
 // Every candidate pair (i, j) for part contact whose spheres are within reach + extra, once each.
@@ -315,11 +363,11 @@ void ContactSolver<Scalar>::for_each_part_pair(const SphereModel<Scalar>& model,
 }
 
 template <typename Scalar>
+template <typename Emit>
 void ContactSolver<Scalar>::part_contact(const SphereModel<Scalar>& model, Index i, Index j,
-                                         Eigen::Ref<Positions<Scalar>> forces) noexcept {
+                                         Emit&& emit) noexcept {
   ++m_candidates;
   const auto x = model.positions();
-  const auto v = model.velocities();
   const auto rest = model.rest_positions();
   const auto radius = model.radii();
   const auto mass = model.masses();
@@ -338,27 +386,26 @@ void ContactSolver<Scalar>::part_contact(const SphereModel<Scalar>& model, Index
                                        : Vector3<Scalar>((rest.row(j) - rest.row(i)).transpose());
   if (!(n.squaredNorm() > 0)) n = Vector3<Scalar>::UnitZ();
   n.normalize();
-  const Vector3<Scalar> v_rel = (v.row(j) - v.row(i)).transpose();
-  const Scalar vn = v_rel.dot(n);
-  // The stiffer of the two materials does not win: the softer one yields. Each sphere's share of
-  // its stability budget is split among its candidate part contacts.
-  const Scalar share_i =
-      m_budget[std::size_t(i)] / Scalar(2 * std::max<Index>(1, m_pair_count[std::size_t(i)]));
-  const Scalar share_j =
-      m_budget[std::size_t(j)] / Scalar(2 * std::max<Index>(1, m_pair_count[std::size_t(j)]));
-  const Scalar kc = std::min({m_k[std::size_t(i)], m_k[std::size_t(j)], share_i, share_j});
+  // j is pushed along n (away from i), i the other way. The softer sphere yields.
+  PenaltyContact<Scalar> pc;
+  pc.node = j;
+  pc.other = i;
+  pc.normal = n;
+  pc.depth = depth;
+  pc.point = x.row(i).transpose() + (radius[i] - Scalar(0.5) * depth) * n;
+  pc.stiffness = std::min(m_k[std::size_t(i)], m_k[std::size_t(j)]);
   const Scalar mu = mass[i] * mass[j] / (mass[i] + mass[j]);
-  const Scalar zeta = m_options.damping_ratio;
-  const Scalar eps2 = m_options.friction_speed * m_options.friction_speed;
-  const Scalar fn = std::max(Scalar(0), kc * depth - Scalar(2) * zeta * std::sqrt(kc * mu) * vn);
-  const Vector3<Scalar> vt = v_rel - vn * n;
-  const Vector3<Scalar> F =
-      fn * n - (m_options.part_friction * fn / std::sqrt(vt.squaredNorm() + eps2)) * vt;
-  if (!F.allFinite()) return;
-  forces.row(j) += F.transpose();
-  forces.row(i) -= F.transpose();
-  record({j, -1, i, n, depth,
-          Vector3<Scalar>(x.row(i).transpose() + (radius[i] - Scalar(0.5) * depth) * n), F});
+  pc.damping = Scalar(2) * m_options.damping_ratio * std::sqrt(pc.stiffness * mu);
+  pc.friction = m_options.part_friction;
+  pc.friction_speed = m_options.friction_speed;
+  pc.node_start = x.row(j).transpose();
+  pc.other_start = x.row(i).transpose();
+  Scalar fn;
+  Vector3<Scalar> slip;
+  pc.force = fsm::detail::contact_force(pc, x.data(), model.velocities().data(), Scalar(0), fn,
+                                        slip);
+  if (!pc.point.allFinite()) return;
+  emit(pc);
 }
 
 template <typename Scalar>
@@ -367,7 +414,6 @@ Index ContactSolver<Scalar>::project(SphereModel<Scalar>& model) noexcept {
   update_hash(model);
   auto x = model.positions();
   auto v = model.velocities();
-  const auto radius = model.radii();
   const auto fixed = model.fixed();
   Index moved = 0;
   for (const Instrument<Scalar>& ins : m_instruments) {
@@ -377,8 +423,8 @@ Index ContactSolver<Scalar>::project(SphereModel<Scalar>& model) noexcept {
     hi.array() += m_max_radius;
     for_each_in_box(lo, hi, [&](Index j) {
       if (fixed[j]) return;
-      const auto hit =
-          contact(ins.shape, ins.pose, Vector3<Scalar>(x.row(j).transpose()), radius[j]);
+      const auto hit = contact(ins.shape, ins.pose, Vector3<Scalar>(x.row(j).transpose()),
+                               m_contact_radius[std::size_t(j)]);
       if (!hit) return;
       x.row(j) += (hit->depth * hit->normal).transpose();
       // Keep no velocity into the instrument (relative to its surface).

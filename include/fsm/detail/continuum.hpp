@@ -1,0 +1,593 @@
+#pragma once
+
+// The continuum law's element term (docs/physics.md section 11), owned by ForceModel: neo-Hookean
+// elasticity on the tetrahedra of the regions that use ForceLaw::continuum,
+//
+//   E = sum_T V_T W_dev(F_T) + sum_a V_a U(J_a),
+//   W_dev = C10 (I1 g(J) - 3)             (g = J^-2/3, extended below J_min; bilinear in I1bar),
+//   U(J) = (K / 2) (J - 1)^2,             J_a = v_a / V_a, v_a = sum_{T at a} v_T / 4,
+//
+// (CalculiX's NEO HOOKE with C10 = mu / 2 and D1 = 2 / K: the deviatoric part per element, the
+// volumetric part on nodal-averaged volume ratios, Bonet and Burton 1998, so that nearly
+// incompressible tissue does not lock), with Voigt viscosity on the strain rate: a viscous
+// pressure tau K dJ_a/dt and, for the deviatoric part, dashpots tau k_e along the element edges.
+//
+// The implicit solve's tangent is positive semi-definite by construction: springs k_e along the
+// current edges for the deviatoric part (k_e = (5/2) mu sum V_T / l_e^2, the network whose shear
+// modulus is mu) and the Gauss-Newton volumetric term sum_a (K / V_a) grad v_a grad v_a^T (the
+// indefinite term with U' d2v is left out). The forces are exact; only the tangent approximates.
+// Nothing here allocates after refresh(), and nothing throws in the per-step functions.
+
+#include <Eigen/Core>
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <tuple>
+#include <vector>
+
+#include "fsm/sphere_model.hpp"
+#include "fsm/types.hpp"
+
+namespace fsm::detail {
+
+/// g(J) = J^{-2/3} for J >= J_min and its second-order Taylor extension below, which is positive
+/// for every J (its discriminant is negative): the energy stays finite and keeps pushing an
+/// inverted element back. Returns g and dg/dJ.
+template <typename Scalar>
+inline void volume_factor(Scalar J, Scalar j_min, Scalar& g, Scalar& dg) noexcept {
+  if (J >= j_min) {
+    g = Scalar(1) / std::cbrt(J * J);
+    dg = Scalar(-2) / Scalar(3) * g / J;
+    return;
+  }
+  const Scalar g0 = Scalar(1) / std::cbrt(j_min * j_min);
+  const Scalar g1 = Scalar(-2) / Scalar(3) * g0 / j_min;
+  const Scalar g2 = Scalar(10) / Scalar(9) * g0 / (j_min * j_min);
+  const Scalar t = J - j_min;
+  g = g0 + t * (g1 + Scalar(0.5) * g2 * t);
+  dg = g1 + g2 * t;
+}
+
+/// The cofactor matrix of F (J F^{-T}, defined for any F).
+template <typename Scalar>
+inline Matrix3<Scalar> cofactor(const Matrix3<Scalar>& F) noexcept {
+  Matrix3<Scalar> c;
+  c.col(0) = F.col(1).cross(F.col(2));
+  c.col(1) = F.col(2).cross(F.col(0));
+  c.col(2) = F.col(0).cross(F.col(1));
+  return c;
+}
+
+/// Deviatoric energy density and its first Piola-Kirchhoff stress for one element.
+/// c10: C10 (Pa); c10_large: C10 beyond the switch (0 = linear); q_switch: I1bar - 3 at the
+/// switch.
+template <typename Scalar>
+inline Scalar deviatoric(const Matrix3<Scalar>& F, Scalar c10, Scalar c10_large, Scalar q_switch,
+                         Scalar j_min, Matrix3<Scalar>* P) noexcept {
+  const Matrix3<Scalar> cof = cofactor(F);
+  const Scalar J = F.col(0).dot(cof.col(0));
+  const Scalar I1 = F.squaredNorm();
+  Scalar g, dg;
+  volume_factor(J, j_min, g, dg);
+  const Scalar q = I1 * g - Scalar(3);
+  Scalar W, slope;
+  if (c10_large > Scalar(0) && q > q_switch) {
+    W = c10 * q_switch + c10_large * (q - q_switch);
+    slope = c10_large;
+  } else {
+    W = c10 * q;
+    slope = c10;
+  }
+  // d(I1 g)/dF = 2 g F + I1 g' dJ/dF, dJ/dF = cof(F).
+  if (P) *P = slope * (Scalar(2) * g * F + I1 * dg * cof);
+  return W;
+}
+
+/// The element term: rest data, per-step scratch, forces, energy and the implicit tangent.
+template <typename Scalar>
+class ContinuumTerm {
+ public:
+  /// Below this volume ratio an element's deviatoric energy uses the extension of J^{-2/3}.
+  static constexpr double j_min = 0.2;
+
+  /// Rebuilds everything from the model's continuum regions (allocates; not real-time).
+  void refresh(const SphereModel<Scalar>& model) {
+    m_tets.clear();
+    m_dm_inv.clear();
+    m_volume.clear();
+    m_c10.clear();
+    m_c10_large.clear();
+    m_q_switch.clear();
+    const Index n = model.num_nodes();
+    m_num_nodes = n;
+    m_node_volume.assign(std::size_t(n), Scalar(0));
+    m_node_bulk.assign(std::size_t(n), Scalar(0));
+    m_node_tau.assign(std::size_t(n), Scalar(0));
+    const auto x = model.rest_positions();
+    const auto tets = model.tetrahedra();
+    const auto region = model.node_regions();
+    std::vector<std::tuple<Index, Index, Scalar, Index>> edges;  // (i, j, V / l^2, region)
+    for (Index t = 0; t < model.num_tetrahedra(); ++t) {
+      const Index r = region[tets(t, 0)];
+      const Region<Scalar>& reg = model.region(r);
+      if (reg.law != ForceLaw::continuum) continue;
+      const Material<Scalar>& mat = reg.material;
+      Matrix3<Scalar> Dm;
+      for (int k = 0; k < 3; ++k) Dm.col(k) = (x.row(tets(t, k + 1)) - x.row(tets(t, 0))).transpose();
+      const Scalar V = Dm.determinant() / Scalar(6);
+      const Matrix3<Scalar> inv = Dm.inverse();
+      for (int k = 0; k < 4; ++k) m_tets.push_back(tets(t, k));
+      for (int k = 0; k < 9; ++k) m_dm_inv.push_back(inv(k % 3, k / 3));  // column-major
+      m_volume.push_back(V);
+      const Scalar mu = mat.shear_modulus();
+      m_c10.push_back(mu / Scalar(2));
+      if (mat.is_bilinear()) {
+        // The bilinear pair as a stiffening of the deviatoric energy: C10 becomes E_L / E times
+        // larger where I1bar - 3 passes its value in uniaxial stretch at the switch strain.
+        const Scalar s = Scalar(1) + mat.switch_strain;
+        m_c10_large.push_back(mu / Scalar(2) * mat.large_strain_modulus / mat.youngs_modulus);
+        m_q_switch.push_back(s * s + Scalar(2) / s - Scalar(3));
+      } else {
+        m_c10_large.push_back(Scalar(0));
+        m_q_switch.push_back(Scalar(0));
+      }
+      for (int k = 0; k < 4; ++k) {
+        const auto a = std::size_t(tets(t, k));
+        m_node_volume[a] += V / Scalar(4);
+        m_node_bulk[a] = mat.bulk_modulus();
+        m_node_tau[a] = mat.retardation_time();
+      }
+      for (int a = 0; a < 4; ++a)
+        for (int b = a + 1; b < 4; ++b) {
+          Index p = tets(t, a), q = tets(t, b);
+          if (p > q) std::swap(p, q);
+          const Scalar l2 = (x.row(q) - x.row(p)).squaredNorm();
+          edges.emplace_back(p, q, V / l2, r);
+        }
+    }
+    std::sort(edges.begin(), edges.end(), [](const auto& u, const auto& w) {
+      return std::tie(std::get<0>(u), std::get<1>(u)) < std::tie(std::get<0>(w), std::get<1>(w));
+    });
+    m_edges.clear();
+    m_edge_k.clear();
+    m_edge_tau.clear();
+    for (std::size_t k = 0; k < edges.size();) {
+      const auto [p, q, w0, r] = edges[k];
+      Scalar w(0);
+      for (; k < edges.size() && std::get<0>(edges[k]) == p && std::get<1>(edges[k]) == q; ++k)
+        w += std::get<2>(edges[k]);
+      (void)w0;
+      const Material<Scalar>& mat = model.region(r).material;
+      m_edges.push_back(p);
+      m_edges.push_back(q);
+      m_edge_k.push_back(Scalar(2.5) * mat.shear_modulus() * w);
+      m_edge_tau.push_back(mat.retardation_time());
+    }
+    const std::size_t nt = m_volume.size();
+    m_grad.assign(12 * nt, Scalar(0));
+    m_edge_block.assign(4 * num_edges(), Scalar(0));
+    m_node_coefficient.assign(std::size_t(n), Scalar(0));
+    m_node_scratch.assign(std::size_t(n), Scalar(0));
+    m_energy_scratch.assign(std::size_t(n), Scalar(0));  // energy() reuses it without growing
+  }
+
+  [[nodiscard]] bool empty() const noexcept { return m_volume.empty(); }
+  /// sum over elements of 6 C10 V (about E V, J): the energy scale of a unit strain.
+  [[nodiscard]] Scalar energy_scale() const noexcept {
+    Scalar s(0);
+    for (std::size_t t = 0; t < m_volume.size(); ++t) s += Scalar(6) * m_c10[t] * m_volume[t];
+    return s;
+  }
+  [[nodiscard]] Index num_elements() const noexcept { return Index(m_volume.size()); }
+  [[nodiscard]] std::size_t num_edges() const noexcept { return m_edge_k.size(); }
+
+  /// Adds the elastic and (unless `viscous` is false) viscous forces at (x, v) (N) to f (all
+  /// `|V| x 3`, row-major). Keeps the elements' volume gradients at x for apply_implicit().
+  void add_forces(const Scalar* x, const Scalar* v, Scalar* f, bool viscous = true) noexcept {
+    if (empty()) return;
+    Scalar* volume_now = m_node_scratch.data();  // current nodal volumes, then pressures
+    Scalar* rate = m_node_coefficient.data();    // d(nodal volume)/dt
+    std::fill(volume_now, volume_now + m_num_nodes, Scalar(0));
+    std::fill(rate, rate + m_num_nodes, Scalar(0));
+    const std::size_t nt = m_volume.size();
+    // Pass 1: deviatoric forces; current volumes and their rates scattered to the nodes.
+    for (std::size_t t = 0; t < nt; ++t) {
+      const Index* id = &m_tets[4 * t];
+      Matrix3<Scalar> Ds;
+      Vector3<Scalar> g[4];
+      load_edges(x, id, Ds);
+      volume_gradient(Ds, g);
+      for (int k = 0; k < 4; ++k)
+        for (int c = 0; c < 3; ++c) m_grad[12 * t + 3 * std::size_t(k) + std::size_t(c)] = g[k][c];
+      const Matrix3<Scalar> F = Ds * dm_inv(t);
+      Matrix3<Scalar> P;
+      deviatoric(F, m_c10[t], m_c10_large[t], m_q_switch[t], Scalar(j_min), &P);
+      const Matrix3<Scalar> H = -m_volume[t] * P * dm_inv(t).transpose();
+      Vector3<Scalar> f0 = Vector3<Scalar>::Zero();
+      for (int k = 0; k < 3; ++k) {
+        add(f, id[k + 1], H.col(k));
+        f0 -= H.col(k);
+      }
+      add(f, id[0], f0);
+      const Scalar vt = Ds.col(0).dot(Ds.col(1).cross(Ds.col(2))) / Scalar(6);
+      Scalar dvt(0);
+      if (viscous)
+        for (int k = 0; k < 4; ++k) dvt += g[k].dot(row(v, id[k]));
+      for (int k = 0; k < 4; ++k) {
+        volume_now[id[k]] += vt / Scalar(4);
+        rate[id[k]] += dvt / Scalar(4);
+      }
+    }
+    // Nodal pressures: p_a = K (J_a - 1) + tau K dJ_a/dt, J_a = v_a / V_a.
+    for (Index a = 0; a < m_num_nodes; ++a) {
+      const Scalar V = m_node_volume[std::size_t(a)];
+      if (!(V > Scalar(0))) continue;
+      const Scalar K = m_node_bulk[std::size_t(a)];
+      volume_now[a] = K * ((volume_now[a] / V - Scalar(1)) +
+                           m_node_tau[std::size_t(a)] * rate[a] / V);
+    }
+    // Pass 2: f = -sum_T pbar_T grad v_T, pbar_T the mean of its nodal pressures.
+    for (std::size_t t = 0; t < nt; ++t) {
+      const Index* id = &m_tets[4 * t];
+      const Scalar* g = &m_grad[12 * t];
+      const Scalar p = (volume_now[id[0]] + volume_now[id[1]] + volume_now[id[2]] +
+                        volume_now[id[3]]) /
+                       Scalar(4);
+      for (int k = 0; k < 4; ++k) {
+        Scalar* q = f + 3 * std::ptrdiff_t(id[k]);
+        q[0] -= p * g[3 * k];
+        q[1] -= p * g[3 * k + 1];
+        q[2] -= p * g[3 * k + 2];
+      }
+    }
+    if (!viscous) return;
+    // Deviatoric viscosity: dashpots tau k_e along the edges.
+    for (std::size_t e = 0; e < num_edges(); ++e) {
+      const Index i = m_edges[2 * e], j = m_edges[2 * e + 1];
+      const Vector3<Scalar> d = row(x, j) - row(x, i);
+      const Scalar l = d.norm();
+      if (!(l > Scalar(0))) continue;
+      const Vector3<Scalar> n = d / l;
+      const Scalar c = m_edge_tau[e] * m_edge_k[e];
+      const Vector3<Scalar> F = c * n.dot(row(v, j) - row(v, i)) * n;
+      add(f, i, F);
+      add(f, j, -F);
+    }
+  }
+
+  /// Elastic energy (J) at x.
+  [[nodiscard]] Scalar energy(const Scalar* x) const noexcept {
+    if (empty()) return Scalar(0);
+    std::vector<Scalar>& volume_now = m_energy_scratch;
+    volume_now.assign(std::size_t(m_num_nodes), Scalar(0));  // reserved by refresh: no growth
+    Scalar e(0);
+    for (std::size_t t = 0; t < m_volume.size(); ++t) {
+      const Index* id = &m_tets[4 * t];
+      Matrix3<Scalar> Ds;
+      load_edges(x, id, Ds);
+      const Matrix3<Scalar> F = Ds * dm_inv(t);
+      e += m_volume[t] *
+           deviatoric<Scalar>(F, m_c10[t], m_c10_large[t], m_q_switch[t], Scalar(j_min), nullptr);
+      const Scalar vt = Ds.col(0).dot(Ds.col(1).cross(Ds.col(2))) / Scalar(6);
+      for (int k = 0; k < 4; ++k) volume_now[std::size_t(id[k])] += vt / Scalar(4);
+    }
+    for (Index a = 0; a < m_num_nodes; ++a) {
+      const Scalar V = m_node_volume[std::size_t(a)];
+      if (!(V > Scalar(0))) continue;
+      const Scalar d = volume_now[std::size_t(a)] / V - Scalar(1);
+      e += Scalar(0.5) * V * m_node_bulk[std::size_t(a)] * d * d;
+    }
+    return e;
+  }
+
+  /// Elements with J <= 0 at x.
+  [[nodiscard]] Index inverted(const Scalar* x) const noexcept {
+    Index count = 0;
+    for (std::size_t t = 0; t < m_volume.size(); ++t) {
+      Matrix3<Scalar> Ds;
+      load_edges(x, &m_tets[4 * t], Ds);
+      if (!(Ds.determinant() > Scalar(0))) ++count;
+    }
+    return count;
+  }
+
+  /// Prepares the implicit tangent at x for a step h, after add_forces() at the same x (its
+  /// volume gradients are reused): the edge springs' blocks and the nodal coefficients; adds
+  /// - h^2 H v to rhs (H the tangent, so that rhs = h F + h^2 dF/dx v with the forces added by the
+  /// caller) and diag(A) contributions to `diagonal`.
+  void prepare_implicit(const Scalar* x, const Scalar* v, Scalar h, Scalar* rhs,
+                        Scalar* diagonal) noexcept {
+    if (empty()) return;
+    const Scalar h2 = h * h;
+    for (std::size_t e = 0; e < num_edges(); ++e) {
+      const Index i = m_edges[2 * e], j = m_edges[2 * e + 1];
+      const Vector3<Scalar> d = row(x, j) - row(x, i);
+      const Scalar l = d.norm();
+      const Vector3<Scalar> n = l > Scalar(0) ? Vector3<Scalar>(d / l) : Vector3<Scalar>::Zero();
+      Scalar* B = &m_edge_block[4 * e];
+      B[0] = n[0];
+      B[1] = n[1];
+      B[2] = n[2];
+      B[3] = (h2 + h * m_edge_tau[e]) * m_edge_k[e];
+      // rhs: the stiffness part only (damping is in the forces): -h^2 k n n^T (v_i - v_j) on i.
+      const Vector3<Scalar> r = h2 * m_edge_k[e] * n.dot(row(v, j) - row(v, i)) * n;
+      add(rhs, i, r);
+      add(rhs, j, -r);
+      for (int c = 0; c < 3; ++c) {
+        diagonal[3 * std::ptrdiff_t(i) + c] += B[3] * n[c] * n[c];
+        diagonal[3 * std::ptrdiff_t(j) + c] += B[3] * n[c] * n[c];
+      }
+    }
+    // The Gauss-Newton coefficients (h^2 + h tau) K / V_a.
+    for (Index a = 0; a < m_num_nodes; ++a) {
+      const Scalar V = m_node_volume[std::size_t(a)];
+      m_node_coefficient[std::size_t(a)] =
+          V > Scalar(0) ? (h2 + h * m_node_tau[std::size_t(a)]) * m_node_bulk[std::size_t(a)] / V
+                        : Scalar(0);
+    }
+    // rhs -= h^2 H_vol v: the stiffness part of the coefficient.
+    apply_volumetric(v, rhs, [&](Index a) {
+      const Scalar V = m_node_volume[std::size_t(a)];
+      return V > Scalar(0) ? -h2 * m_node_bulk[std::size_t(a)] / V : Scalar(0);
+    });
+    // diag(H_vol)_i = sum_a c_a (d v_a / d x_i)^2, d v_a / d x_i = sum_{T at a, i} g_{T,i} / 4.
+    // Computed per element and node pair (a, i) of the element: an upper bound of the exact
+    // diagonal's 1-ring sums would need the ring; this per-element sum is what Jacobi needs.
+    for (std::size_t t = 0; t < m_volume.size(); ++t) {
+      const Index* id = &m_tets[4 * t];
+      for (int k = 0; k < 4; ++k) {
+        Scalar c(0);
+        for (int a = 0; a < 4; ++a) c += m_node_coefficient[std::size_t(id[a])];
+        for (int d = 0; d < 3; ++d) {
+          const Scalar gk = m_grad[12 * t + 3 * std::size_t(k) + std::size_t(d)] / Scalar(4);
+          diagonal[3 * std::ptrdiff_t(id[k]) + d] += c * gk * gk;
+        }
+      }
+    }
+  }
+
+  /// y += A_continuum p for the tangent prepared by prepare_implicit().
+  void apply_implicit(const Scalar* p, Scalar* y) noexcept {
+    if (empty()) return;
+    for (std::size_t e = 0; e < num_edges(); ++e) {
+      const Scalar* B = &m_edge_block[4 * e];
+      const Index i = m_edges[2 * e], j = m_edges[2 * e + 1];
+      const std::ptrdiff_t a = 3 * std::ptrdiff_t(i), b = 3 * std::ptrdiff_t(j);
+      const Scalar s = B[3] * (B[0] * (p[b] - p[a]) + B[1] * (p[b + 1] - p[a + 1]) +
+                               B[2] * (p[b + 2] - p[a + 2]));
+      for (int c = 0; c < 3; ++c) {
+        y[a + c] -= s * B[c];
+        y[b + c] += s * B[c];
+      }
+    }
+    apply_volumetric(p, y, [&](Index a) { return m_node_coefficient[std::size_t(a)]; });
+  }
+
+  /// Conservative bound of the element term's stiffness per node (N/m): Gershgorin row sums of
+  /// the rest tangent (for stable time steps and contact stiffness).
+  void add_node_stiffness(const SphereModel<Scalar>& model, Scalar* k) const {
+    if (empty()) return;
+    const auto x = model.rest_positions();
+    for (std::size_t e = 0; e < num_edges(); ++e) {
+      k[m_edges[2 * e]] += Scalar(2) * m_edge_k[e];
+      k[m_edges[2 * e + 1]] += Scalar(2) * m_edge_k[e];
+    }
+    // Volumetric: row sum of sum_a (K / V_a) |grad_i v_a| |grad_j v_a| over j.
+    std::vector<Scalar> ring(std::size_t(m_num_nodes), Scalar(0));
+    for (std::size_t t = 0; t < m_volume.size(); ++t) {
+      Matrix3<Scalar> Ds;
+      Vector3<Scalar> g[4];
+      load_edges(x.data(), &m_tets[4 * t], Ds);
+      volume_gradient(Ds, g);
+      Scalar s(0);
+      for (int j = 0; j < 4; ++j) s += g[j].norm() / Scalar(4);
+      for (int a = 0; a < 4; ++a) ring[std::size_t(m_tets[4 * t + std::size_t(a)])] += s;
+    }
+    for (std::size_t t = 0; t < m_volume.size(); ++t) {
+      Matrix3<Scalar> Ds;
+      Vector3<Scalar> g[4];
+      load_edges(x.data(), &m_tets[4 * t], Ds);
+      volume_gradient(Ds, g);
+      for (int a = 0; a < 4; ++a) {
+        const auto na = std::size_t(m_tets[4 * t + std::size_t(a)]);
+        const Scalar c = m_node_bulk[na] / m_node_volume[na] * ring[na];
+        for (int i = 0; i < 4; ++i)
+          k[m_tets[4 * t + std::size_t(i)]] += c * g[i].norm() / Scalar(4);
+      }
+    }
+  }
+
+  /// The retardation time of node a's region (s), 0 outside continuum regions.
+  [[nodiscard]] Scalar node_tau(Index a) const noexcept { return m_node_tau[std::size_t(a)]; }
+
+  /// Triplets of the tangent H (the positive semi-definite approximation of -dF/dx the solve uses)
+  /// at x.
+  template <typename Triplets>
+  void tangent_triplets(const Scalar* x, Triplets& trip) const {
+    for (std::size_t e = 0; e < num_edges(); ++e) {
+      const Index i = m_edges[2 * e], j = m_edges[2 * e + 1];
+      const Vector3<Scalar> d = row(x, j) - row(x, i);
+      const Scalar l = d.norm();
+      if (!(l > Scalar(0))) continue;
+      const Matrix3<Scalar> K = m_edge_k[e] * (d / l) * (d / l).transpose();
+      push_pair(trip, i, j, K);
+    }
+    // sum_a (K / V_a) grad v_a grad v_a^T, grad v_a = sum_{T at a} grad v_T / 4.
+    std::vector<std::vector<std::pair<Index, Vector3<Scalar>>>> grad(
+        static_cast<std::size_t>(m_num_nodes));
+    for (std::size_t t = 0; t < m_volume.size(); ++t) {
+      const Index* id = &m_tets[4 * t];
+      Matrix3<Scalar> Ds;
+      Vector3<Scalar> g[4];
+      load_edges(x, id, Ds);
+      volume_gradient(Ds, g);
+      for (int a = 0; a < 4; ++a)
+        for (int k = 0; k < 4; ++k) grad[std::size_t(id[a])].emplace_back(id[k], g[k] / Scalar(4));
+    }
+    for (Index a = 0; a < m_num_nodes; ++a) {
+      const Scalar V = m_node_volume[std::size_t(a)];
+      if (!(V > Scalar(0))) continue;
+      const Scalar c = m_node_bulk[std::size_t(a)] / V;
+      for (const auto& [i, gi] : grad[std::size_t(a)])
+        for (const auto& [j, gj] : grad[std::size_t(a)]) {
+          const Matrix3<Scalar> B = c * gi * gj.transpose();
+          for (int r = 0; r < 3; ++r)
+            for (int s = 0; s < 3; ++s) trip.emplace_back(3 * i + r, 3 * j + s, B(r, s));
+        }
+    }
+  }
+
+  /// Triplets of the exact Jacobian dF/dx of the elastic element forces at x, by central
+  /// differences of the exact forces (offline: for the direct solvers and for analysis).
+  template <typename Triplets>
+  void exact_stiffness_triplets(const Scalar* x, Triplets& trip) {
+    std::vector<Scalar> xp(x, x + 3 * std::size_t(m_num_nodes));
+    const std::vector<Scalar> zero(xp.size(), Scalar(0));
+    std::vector<Scalar> fp(xp.size()), fm(xp.size());
+    // Columns j: perturb x_j; forces on every node (the volumetric term reaches the 2-ring).
+    for (Index j = 0; j < m_num_nodes; ++j) {
+      if (!(m_node_volume[std::size_t(j)] > Scalar(0))) continue;
+      for (int c = 0; c < 3; ++c) {
+        const std::size_t k = 3 * std::size_t(j) + std::size_t(c);
+        const Scalar step =
+            std::sqrt(std::numeric_limits<Scalar>::epsilon()) * std::max(Scalar(1e-3), std::abs(xp[k]));
+        std::fill(fp.begin(), fp.end(), Scalar(0));
+        std::fill(fm.begin(), fm.end(), Scalar(0));
+        xp[k] += step;
+        add_forces(xp.data(), zero.data(), fp.data(), false);
+        xp[k] -= 2 * step;
+        add_forces(xp.data(), zero.data(), fm.data(), false);
+        xp[k] += step;
+        for (Index i = 0; i < m_num_nodes; ++i)
+          for (int r = 0; r < 3; ++r) {
+            const Scalar d = (fp[3 * std::size_t(i) + std::size_t(r)] -
+                              fm[3 * std::size_t(i) + std::size_t(r)]) /
+                             (2 * step);
+            if (d != Scalar(0)) trip.emplace_back(3 * i + r, 3 * j + c, d);
+          }
+      }
+    }
+  }
+
+  /// Triplets of the element term's damping matrix D = -dF/dv (positive semi-definite; exact: the
+  /// forces are linear in v).
+  template <typename Triplets>
+  void damping_triplets(const Scalar* x, Triplets& trip) const {
+    for (std::size_t e = 0; e < num_edges(); ++e) {
+      const Index i = m_edges[2 * e], j = m_edges[2 * e + 1];
+      const Vector3<Scalar> d = row(x, j) - row(x, i);
+      const Scalar l = d.norm();
+      if (!(l > Scalar(0))) continue;
+      const Matrix3<Scalar> D = m_edge_tau[e] * m_edge_k[e] * (d / l) * (d / l).transpose();
+      push_pair(trip, i, j, D);
+    }
+    std::vector<std::vector<std::pair<Index, Vector3<Scalar>>>> grad(
+        static_cast<std::size_t>(m_num_nodes));
+    for (std::size_t t = 0; t < m_volume.size(); ++t) {
+      const Index* id = &m_tets[4 * t];
+      Matrix3<Scalar> Ds;
+      Vector3<Scalar> g[4];
+      load_edges(x, id, Ds);
+      volume_gradient(Ds, g);
+      for (int a = 0; a < 4; ++a)
+        for (int k = 0; k < 4; ++k) grad[std::size_t(id[a])].emplace_back(id[k], g[k] / Scalar(4));
+    }
+    for (Index a = 0; a < m_num_nodes; ++a) {
+      const Scalar V = m_node_volume[std::size_t(a)];
+      if (!(V > Scalar(0))) continue;
+      const Scalar c = m_node_tau[std::size_t(a)] * m_node_bulk[std::size_t(a)] / V;
+      for (const auto& [i, gi] : grad[std::size_t(a)])
+        for (const auto& [j, gj] : grad[std::size_t(a)]) {
+          const Matrix3<Scalar> B = c * gi * gj.transpose();
+          for (int r = 0; r < 3; ++r)
+            for (int s = 0; s < 3; ++s) trip.emplace_back(3 * i + r, 3 * j + s, B(r, s));
+        }
+    }
+  }
+
+ private:
+  static Vector3<Scalar> row(const Scalar* a, Index i) noexcept {
+    const Scalar* p = a + 3 * std::ptrdiff_t(i);
+    return {p[0], p[1], p[2]};
+  }
+  static void add(Scalar* a, Index i, const Vector3<Scalar>& v) noexcept {
+    Scalar* p = a + 3 * std::ptrdiff_t(i);
+    p[0] += v[0];
+    p[1] += v[1];
+    p[2] += v[2];
+  }
+  static void load_edges(const Scalar* x, const Index* id, Matrix3<Scalar>& Ds) noexcept {
+    const Vector3<Scalar> o = row(x, id[0]);
+    for (int k = 0; k < 3; ++k) Ds.col(k) = row(x, id[k + 1]) - o;
+  }
+  /// d(volume)/dx of the four nodes: (1/6) e2 x e3, e3 x e1, e1 x e2, and minus their sum.
+  static void volume_gradient(const Matrix3<Scalar>& Ds, Vector3<Scalar> g[4]) noexcept {
+    g[1] = Ds.col(1).cross(Ds.col(2)) / Scalar(6);
+    g[2] = Ds.col(2).cross(Ds.col(0)) / Scalar(6);
+    g[3] = Ds.col(0).cross(Ds.col(1)) / Scalar(6);
+    g[0] = -(g[1] + g[2] + g[3]);
+  }
+  [[nodiscard]] Eigen::Map<const Matrix3<Scalar>> dm_inv(std::size_t t) const noexcept {
+    return Eigen::Map<const Matrix3<Scalar>>(&m_dm_inv[9 * t]);
+  }
+  template <typename Triplets>
+  static void push_pair(Triplets& trip, Index i, Index j, const Matrix3<Scalar>& K) {
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) {
+        trip.emplace_back(3 * i + r, 3 * i + c, K(r, c));
+        trip.emplace_back(3 * j + r, 3 * j + c, K(r, c));
+        trip.emplace_back(3 * i + r, 3 * j + c, -K(r, c));
+        trip.emplace_back(3 * j + r, 3 * i + c, -K(r, c));
+      }
+  }
+
+  // y += sum_a coefficient(a) (grad v_a . p) grad v_a, with the gradients of prepare_implicit().
+  template <typename Coefficient>
+  void apply_volumetric(const Scalar* p, Scalar* y, Coefficient coefficient) noexcept {
+    Scalar* s = m_node_scratch.data();
+    std::fill(s, s + m_num_nodes, Scalar(0));
+    const std::size_t nt = m_volume.size();
+    for (std::size_t t = 0; t < nt; ++t) {
+      const Index* id = &m_tets[4 * t];
+      const Scalar* g = &m_grad[12 * t];
+      Scalar d(0);
+      for (int k = 0; k < 4; ++k) {
+        const Scalar* q = p + 3 * std::ptrdiff_t(id[k]);
+        d += g[3 * k] * q[0] + g[3 * k + 1] * q[1] + g[3 * k + 2] * q[2];
+      }
+      d *= Scalar(0.25);
+      for (int k = 0; k < 4; ++k) s[id[k]] += d;
+    }
+    for (Index a = 0; a < m_num_nodes; ++a) s[a] *= coefficient(a);
+    for (std::size_t t = 0; t < nt; ++t) {
+      const Index* id = &m_tets[4 * t];
+      const Scalar* g = &m_grad[12 * t];
+      const Scalar c = Scalar(0.25) * (s[id[0]] + s[id[1]] + s[id[2]] + s[id[3]]);
+      for (int k = 0; k < 4; ++k) {
+        Scalar* q = y + 3 * std::ptrdiff_t(id[k]);
+        q[0] += c * g[3 * k];
+        q[1] += c * g[3 * k + 1];
+        q[2] += c * g[3 * k + 2];
+      }
+    }
+  }
+
+  Index m_num_nodes{0};
+  std::vector<Index> m_tets;       // 4 per element
+  std::vector<Scalar> m_dm_inv;    // 9 per element, column-major D_m^-1
+  std::vector<Scalar> m_volume;    // rest volume per element (m^3)
+  std::vector<Scalar> m_c10, m_c10_large, m_q_switch;  // per element
+  std::vector<Scalar> m_node_volume, m_node_bulk, m_node_tau;  // per node
+  std::vector<Index> m_edges;      // 2 per edge
+  std::vector<Scalar> m_edge_k, m_edge_tau;  // per edge (N/m, s)
+  // Per-step scratch (sized by refresh).
+  std::vector<Scalar> m_grad;              // 12 per element: volume gradients at the step's x
+  std::vector<Scalar> m_edge_block;        // 4 per edge: n and (h^2 + h tau) k
+  std::vector<Scalar> m_node_coefficient;  // per node
+  std::vector<Scalar> m_node_scratch;      // per node
+  mutable std::vector<Scalar> m_energy_scratch;
+};
+
+}  // namespace fsm::detail

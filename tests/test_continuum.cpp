@@ -1,0 +1,357 @@
+// The continuum law (docs/physics.md section 11): tetrahedra in SphereModel; element forces are
+// minus the gradient of the energy, match an independent single-element reference, balance
+// momentum and torque, vanish for rigid motion; damping only dissipates; the implicit tangent is
+// positive semi-definite; homogeneous deformations recover E, nu and mu exactly (patch test); an
+// inverted element keeps finite forces that push it back; and a block squeezed between two
+// frictionless instruments carries E A strain at every resolution (contact and law together).
+
+#include <random>
+
+#include "common.hpp"
+#include "fsm/collision/contact.hpp"
+
+namespace fsm::test {
+namespace {
+
+using V3 = Vector3<double>;
+using M3 = Matrix3<double>;
+
+Material<double> soft(double nu = 0.45, double E = 13150, double eta = 10.26) {
+  Material<double> m = tissue<double>(E, eta);
+  m.poisson_ratio = nu;
+  return m;
+}
+
+/// A lattice block (cells x spacing) with the continuum law.
+SphereModel<double> continuum_block(Eigen::Vector3i cells, double spacing,
+                                    const Material<double>& mat = soft()) {
+  SphereModel<double> m = block<double>(cells, spacing, mat);
+  m.set_region_law(0, ForceLaw::continuum);
+  return m;
+}
+
+Positions<double> affine(const SphereModel<double>& m, const M3& F) {
+  Positions<double> x = m.rest_positions();
+  for (Index i = 0; i < m.num_nodes(); ++i) x.row(i) = (F * x.row(i).transpose()).transpose();
+  return x;
+}
+
+double block_volume(const SphereModel<double>& m) {
+  double v = 0;
+  const auto x = m.rest_positions();
+  const auto t = m.tetrahedra();
+  for (Index e = 0; e < m.num_tetrahedra(); ++e) {
+    M3 D;
+    for (int k = 0; k < 3; ++k) D.col(k) = (x.row(t(e, k + 1)) - x.row(t(e, 0))).transpose();
+    v += D.determinant() / 6;
+  }
+  return v;
+}
+
+TEST(SphereModelTetrahedra, AreCheckedWhenAdded) {
+  SphereModel<double> m;
+  const Index a = m.add_region("a", soft()), b = m.add_region("b", soft());
+  for (const V3& p : {V3(0, 0, 0), V3(1, 0, 0), V3(0, 1, 0), V3(0, 0, 1)})
+    m.add_node(0.001 * p, 0.0005, 1e-4, a);
+  m.add_node(V3(0.001, 0.001, 0.001), 0.0005, 1e-4, b);
+  EXPECT_EQ(m.add_tetrahedron(0, 1, 2, 3), 0);
+  EXPECT_EQ(m.num_tetrahedra(), 1);
+  auto message = [&](Index p, Index q, Index r, Index s) {
+    try {
+      m.add_tetrahedron(p, q, r, s);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message(0, 1, 2, 7).find("out of range"), std::string::npos);
+  EXPECT_NE(message(0, 1, 1, 3).find("repeats"), std::string::npos);
+  EXPECT_NE(message(1, 2, 3, 4).find("different regions"), std::string::npos);
+  EXPECT_NE(message(0, 2, 1, 3).find("inverted or degenerate"), std::string::npos);
+  EXPECT_EQ(m.num_tetrahedra(), 1);  // nothing added by the failures
+  // The continuum law needs every node of its region in a tetrahedron.
+  m.set_region_law(b, ForceLaw::continuum);
+  EXPECT_THROW(m.validate(), Error);
+  m.set_region_law(b, ForceLaw::links);
+  m.set_region_law(a, ForceLaw::continuum);
+  EXPECT_NO_THROW(m.validate());
+  EXPECT_TRUE(m.has_continuum());
+  EXPECT_THROW(m.set_region_law(7, ForceLaw::links), Error);
+}
+
+TEST(Continuum, LinksOfAContinuumRegionCarryNoForce) {
+  SphereModel<double> m = continuum_block({2, 2, 2}, 0.005);
+  ForceModel<double> f = no_gravity(m);
+  EXPECT_EQ(f.num_elements(), m.num_tetrahedra());
+  for (const auto carries : f.force_links()) EXPECT_EQ(carries, 0);
+  // At rest: no force at all.
+  Positions<double> out(m.num_nodes(), 3);
+  f.evaluate(m, m.positions(), m.velocities(), out);
+  EXPECT_LT(out.cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_EQ(f.elastic_energy(m, m.positions()), 0.0);
+}
+
+// Forces are minus the energy's gradient (central differences), for a deformed, jittered block in
+// moderate strain, with the bilinear stiffening, and in an element pressed beyond J_min.
+TEST(Continuum, ForcesAreMinusTheEnergyGradient) {
+  std::mt19937 rng(7);
+  for (const bool bilinear : {false, true}) {
+    SphereModel<double> m = random_model<double>(rng, {2, 2, 2}, 0.25, bilinear);
+    m.set_region_law(0, ForceLaw::continuum);
+    m.velocities().setZero();
+    ForceModel<double> f = no_gravity(m);
+    const Positions<double> x = m.positions();
+    Positions<double> g(m.num_nodes(), 3);
+    f.evaluate(m, x, m.velocities(), g);
+    double worst = 0, scale = g.cwiseAbs().maxCoeff();
+    for (Index i = 0; i < m.num_nodes(); ++i)
+      for (int c = 0; c < 3; ++c) {
+        Positions<double> xp = x, xm = x;
+        const double h = 1e-8;
+        xp(i, c) += h;
+        xm(i, c) -= h;
+        const double fd = -(f.elastic_energy(m, xp) - f.elastic_energy(m, xm)) / (2 * h);
+        worst = std::max(worst, std::abs(fd - g(i, c)));
+      }
+    EXPECT_LT(worst, 1e-5 * scale) << "bilinear " << bilinear;
+  }
+  // One element pressed flat (J = 0.05 < J_min) and one inverted (J < 0): finite, and the
+  // gradient still holds (the extension of J^-2/3 is smooth).
+  for (const double squash : {0.05, -0.3}) {
+    SphereModel<double> m;
+    const Index r = m.add_region("t", soft(0.45), ForceLaw::continuum);
+    for (const V3& p : {V3(0, 0, 0), V3(1, 0, 0), V3(0, 1, 0), V3(0, 0, 1)})
+      m.add_node(0.002 * p, 0.0005, 1e-4, r);
+    m.add_tetrahedron(0, 1, 2, 3);
+    m.positions()(3, 2) = 0.002 * squash;
+    ForceModel<double> f = no_gravity(m);
+    Positions<double> g(4, 3);
+    f.evaluate(m, m.positions(), m.velocities(), g);
+    ASSERT_TRUE(g.allFinite());
+    EXPECT_GT(g(3, 2), 0) << "the flattened apex is pushed back up, J = " << squash;
+    EXPECT_EQ(f.inverted_elements(m.positions()), squash < 0 ? 1 : 0);
+    const Positions<double> x = m.positions();
+    for (int c = 0; c < 3; ++c) {
+      Positions<double> xp = x, xm = x;
+      xp(3, c) += 1e-9;
+      xm(3, c) -= 1e-9;
+      const double fd = -(f.elastic_energy(m, xp) - f.elastic_energy(m, xm)) / 2e-9;
+      EXPECT_TRUE(near(fd, g(3, c), 1e-5, 1e-6 * g.cwiseAbs().maxCoeff())) << squash << " " << c;
+    }
+  }
+}
+
+// A single element: every node's nodal volume ratio is the element's J, so the energy is
+// V (C10 (I1 J^-2/3 - 3) + K/2 (J - 1)^2), written here from the textbook, independently of the
+// library's code; its central-difference gradient must equal the library's forces.
+TEST(Continuum, SingleElementMatchesTheTextbookNeoHookean) {
+  const Material<double> mat = soft(0.49, 5000);
+  SphereModel<double> m;
+  const Index r = m.add_region("t", mat, ForceLaw::continuum);
+  const V3 rest[4] = {V3(0, 0, 0), V3(0.003, 0, 0), V3(0.0005, 0.002, 0), V3(0.001, 0.001, 0.0025)};
+  for (const V3& p : rest) m.add_node(p, 0.0005, 1e-4, r);
+  m.add_tetrahedron(0, 1, 2, 3);
+  std::mt19937 rng(3);
+  std::normal_distribution<double> n(0, 3e-4);
+  for (int i = 0; i < 4; ++i)
+    for (int c = 0; c < 3; ++c) m.positions()(i, c) += n(rng);
+  const double mu = mat.youngs_modulus / (2 * (1 + mat.poisson_ratio));
+  const double K = mat.youngs_modulus / (3 * (1 - 2 * mat.poisson_ratio));
+  M3 Dm;
+  for (int k = 0; k < 3; ++k) Dm.col(k) = rest[k + 1] - rest[0];
+  const double V = Dm.determinant() / 6;
+  auto textbook = [&](const Positions<double>& x) {
+    M3 Ds;
+    for (int k = 0; k < 3; ++k) Ds.col(k) = (x.row(k + 1) - x.row(0)).transpose();
+    const M3 F = Ds * Dm.inverse();
+    const double J = F.determinant();
+    const double I1 = (F.transpose() * F).trace();
+    return V * (mu / 2 * (I1 * std::pow(J, -2.0 / 3.0) - 3) + K / 2 * (J - 1) * (J - 1));
+  };
+  ForceModel<double> f = no_gravity(m);
+  EXPECT_TRUE(near(f.elastic_energy(m, m.positions()), textbook(m.positions()), 1e-12));
+  Positions<double> g(4, 3);
+  f.evaluate(m, m.positions(), Positions<double>::Zero(4, 3), g);
+  for (int i = 0; i < 4; ++i)
+    for (int c = 0; c < 3; ++c) {
+      Positions<double> xp = m.positions(), xm = m.positions();
+      xp(i, c) += 1e-9;
+      xm(i, c) -= 1e-9;
+      const double fd = -(textbook(xp) - textbook(xm)) / 2e-9;
+      EXPECT_TRUE(near(g(i, c), fd, 1e-6, 1e-7 * g.cwiseAbs().maxCoeff())) << i << " " << c;
+    }
+}
+
+// Equal and opposite: the forces sum to zero and have no net torque, at any deformation and
+// velocity; a rigid rotation (position and velocity) gives no force at all.
+TEST(Continuum, ForcesBalanceAndRigidMotionIsFree) {
+  std::mt19937 rng(11);
+  SphereModel<double> m = random_model<double>(rng, {3, 2, 2}, 0.2);
+  m.set_region_law(0, ForceLaw::continuum);
+  ForceModel<double> f = no_gravity(m);
+  Positions<double> g(m.num_nodes(), 3);
+  f.evaluate(m, m.positions(), m.velocities(), g);
+  const double scale = g.cwiseAbs().maxCoeff();
+  ASSERT_GT(scale, 0);
+  EXPECT_LT(g.colwise().sum().norm(), 1e-10 * scale * double(m.num_nodes()));
+  V3 torque = V3::Zero();
+  for (Index i = 0; i < m.num_nodes(); ++i)
+    torque += m.positions().row(i).transpose().cross(g.row(i).transpose());
+  EXPECT_LT(torque.norm(), 1e-10 * scale * 0.03 * double(m.num_nodes()));
+  // Rigid: rotate the rest shape by 40 degrees and spin it at 3 rad/s about the same axis.
+  const M3 R = Eigen::AngleAxisd(0.7, V3(1, 2, 3).normalized()).toRotationMatrix();
+  const V3 w = 3 * V3(1, 2, 3).normalized();
+  Positions<double> x = affine(m, R), v(m.num_nodes(), 3);
+  for (Index i = 0; i < m.num_nodes(); ++i) v.row(i) = w.cross(V3(x.row(i).transpose())).transpose();
+  f.evaluate(m, x, v, g);
+  EXPECT_LT(g.cwiseAbs().maxCoeff(), 1e-9 * scale);
+}
+
+// Viscous forces only take energy out: their power is negative for any velocity.
+TEST(Continuum, DampingNeverAddsEnergy) {
+  std::mt19937 rng(5);
+  SphereModel<double> m = random_model<double>(rng, {2, 2, 2}, 0.25);
+  m.set_region_law(0, ForceLaw::continuum);
+  ForceModel<double> f = no_gravity(m);
+  std::normal_distribution<double> n(0, 0.05);
+  for (int trial = 0; trial < 20; ++trial) {
+    Positions<double> v(m.num_nodes(), 3), with(m.num_nodes(), 3), without(m.num_nodes(), 3);
+    for (Index i = 0; i < v.size(); ++i) v.data()[i] = n(rng);
+    f.evaluate(m, m.positions(), v, with);
+    f.evaluate(m, m.positions(), Positions<double>::Zero(m.num_nodes(), 3), without);
+    const double power = (with - without).cwiseProduct(v).sum();
+    EXPECT_LT(power, 0) << trial;
+  }
+  // The damping matrix is negative semi-definite (its eigenvalues <= 0).
+  const Eigen::MatrixXd D = Eigen::MatrixXd(f.damping_matrix(m));
+  EXPECT_TRUE(matrices_near(D, Eigen::MatrixXd(D.transpose()), 1e-12));
+  const Eigen::VectorXd ev = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(D).eigenvalues();
+  EXPECT_LT(ev.maxCoeff(), 1e-9 * ev.cwiseAbs().maxCoeff());
+}
+
+// The implicit solve's tangent (definite form) is symmetric and negative semi-definite; at rest
+// its volumetric part equals the exact Jacobian's (U' = 0 there) and both agree on the rigid
+// modes (zero).
+TEST(Continuum, TangentIsDefiniteAndExactJacobianIsTheForceDerivative) {
+  std::mt19937 rng(9);
+  SphereModel<double> m = random_model<double>(rng, {2, 2, 1}, 0.2);
+  m.set_region_law(0, ForceLaw::continuum);
+  ForceModel<double> f = no_gravity(m);
+  const Eigen::MatrixXd T = Eigen::MatrixXd(f.stiffness_matrix(m, JacobianForm::definite));
+  EXPECT_TRUE(matrices_near(T, Eigen::MatrixXd(T.transpose()), 1e-12));
+  const Eigen::VectorXd ev = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(T).eigenvalues();
+  EXPECT_LT(ev.maxCoeff(), 1e-9 * ev.cwiseAbs().maxCoeff());
+  // The exact Jacobian against a directional derivative of the forces.
+  const Eigen::MatrixXd K = Eigen::MatrixXd(f.stiffness_matrix(m, JacobianForm::exact));
+  std::normal_distribution<double> n(0, 1);
+  Eigen::VectorXd d(3 * m.num_nodes());
+  for (Index i = 0; i < d.size(); ++i) d[i] = n(rng);
+  const double h = 1e-8;
+  Positions<double> xp = m.positions(), xm = m.positions(), fp(m.num_nodes(), 3),
+                    fm(m.num_nodes(), 3);
+  const Positions<double> zero = Positions<double>::Zero(m.num_nodes(), 3);
+  for (Index i = 0; i < m.num_nodes(); ++i)
+    for (int c = 0; c < 3; ++c) {
+      xp(i, c) += h * d[3 * i + c];
+      xm(i, c) -= h * d[3 * i + c];
+    }
+  f.evaluate(m, xp, zero, fp);
+  f.evaluate(m, xm, zero, fm);
+  Eigen::VectorXd fd(3 * m.num_nodes());
+  for (Index i = 0; i < m.num_nodes(); ++i)
+    for (int c = 0; c < 3; ++c) fd[3 * i + c] = (fp(i, c) - fm(i, c)) / (2 * h);
+  const Eigen::VectorXd Kd = K * d;
+  EXPECT_LT((Kd - fd).norm(), 1e-5 * fd.norm());
+}
+
+// Homogeneous deformations of a block (a patch test): interior nodes feel no force, and the
+// energy per unit volume is the continuum's, so E, nu and mu are what the material says at any
+// resolution: uniaxial stress (lateral strain -nu eps) stores E eps^2 / 2 and is the minimum over
+// lateral strains; simple shear stores mu gamma^2 / 2; a pure volume change K (dV/V)^2 / 2.
+TEST(Continuum, HomogeneousStrainRecoversTheMaterialConstants) {
+  for (const double nu : {0.3, 0.45, 0.49}) {
+    const Material<double> mat = soft(nu);
+    for (const double spacing : {0.005, 0.0025}) {
+      SphereModel<double> m = continuum_block({4, 4, 4}, spacing * 4 / 4, mat);
+      ForceModel<double> f = no_gravity(m);
+      const double V = block_volume(m), E = mat.youngs_modulus, eps = 1e-4;
+      auto energy = [&](const M3& F) { return f.elastic_energy(m, affine(m, F)) / V; };
+      const M3 uni = V3(1 + eps, 1 - nu * eps, 1 - nu * eps).asDiagonal();
+      EXPECT_TRUE(near(energy(uni), 0.5 * E * eps * eps, 2e-3)) << nu << " " << spacing;
+      // Lateral strain -nu eps is the minimum: perturbing it either way costs energy.
+      const double d = 0.2 * nu * eps;
+      EXPECT_GT(energy(V3(1 + eps, 1 - nu * eps + d, 1 - nu * eps + d).asDiagonal()), energy(uni));
+      EXPECT_GT(energy(V3(1 + eps, 1 - nu * eps - d, 1 - nu * eps - d).asDiagonal()), energy(uni));
+      M3 shear = M3::Identity();
+      shear(0, 1) = eps;
+      EXPECT_TRUE(near(energy(shear), 0.5 * mat.shear_modulus() * eps * eps, 2e-3));
+      const double s = std::cbrt(1 + eps);
+      EXPECT_TRUE(near(energy(s * M3::Identity()), 0.5 * mat.bulk_modulus() * eps * eps, 2e-3));
+      // Patch test: interior nodes in equilibrium under the homogeneous stretch.
+      Positions<double> g(m.num_nodes(), 3);
+      f.evaluate(m, affine(m, uni), Positions<double>::Zero(m.num_nodes(), 3), g);
+      const double face = g.cwiseAbs().maxCoeff();
+      const double extent = 4 * spacing;
+      for (Index i = 0; i < m.num_nodes(); ++i) {
+        const V3 p = m.rest_positions().row(i).transpose();
+        const bool interior = (p.array() > 1e-9).all() && (p.array() < extent - 1e-9).all();
+        if (interior) EXPECT_LT(g.row(i).norm(), 1e-9 * face) << i;
+      }
+    }
+  }
+}
+
+// Equal-and-opposite frictionless instruments squeeze a free block (no gravity, no fixed node):
+// uniaxial stress, so the force must be E A (compression) at small strain. The penalty contact's
+// stiffness follows the tissue's, so the force and the penetration share must hold at 5 mm and at
+// 2.5 mm spacing alike: no softening as the spheres get smaller.
+TEST(Continuum, SqueezedBlockCarriesEAStrainAtEveryResolution) {
+  using namespace fsm::collision;
+  const double side = 0.02, strain = 0.01;
+  const Material<double> mat = soft(0.45, 13150, 10.26);
+  std::vector<double> forces;
+  for (const int cells : {4, 8}) {
+    SphereModel<double> m = continuum_block({cells, cells, cells}, side / cells, mat);
+    Simulation<double>::Options o;
+    o.forces.gravity.setZero();
+    o.forces.drag = 50;  // settles the free block's rigid modes
+    Simulation<double> sim(m, o);
+    ContactSolver<double> contacts(sim.model(), sim.forces());
+    Instrument<double> plate;
+    plate.shape = CylinderShape<double>{0.02, 0.005};  // radius 20 mm, half height 5 mm, axis z
+    plate.friction = 0;
+    plate.pose.position = V3(0.01, 0.01, side + 0.005);
+    const Index top = contacts.add_instrument(plate);
+    plate.pose.position = V3(0.01, 0.01, -0.005);
+    const Index bottom = contacts.add_instrument(plate);
+    const int ramp = 200, hold = 600;
+    for (int s = 0; s < ramp + hold; ++s) {
+      const double squeeze = 0.5 * strain * side * std::min(1.0, double(s + 1) / ramp);
+      contacts.instrument(top).pose.position.z() = side + 0.005 - squeeze;
+      contacts.instrument(bottom).pose.position.z() = -0.005 + squeeze;
+      contacts.compute(sim.model(), sim.forces());
+      const StepReport<double> r = sim.step(1e-3);
+      ASSERT_TRUE(r.advanced()) << s;
+      ASSERT_EQ(r.inverted_elements, 0);
+      contacts.collect(sim.forces());
+    }
+    const double F = contacts.wrench(top).force.z();
+    EXPECT_TRUE(near(F, -contacts.wrench(bottom).force.z(), 1e-3)) << "balance, " << cells;
+    // The block's height change against the plates' travel: the contact's share is small.
+    double zmax = -1, zmin = 1;
+    for (Index i = 0; i < sim.model().num_nodes(); ++i) {
+      zmax = std::max(zmax, sim.model().positions()(i, 2));
+      zmin = std::min(zmin, sim.model().positions()(i, 2));
+    }
+    const double compressed = side - (zmax - zmin);
+    EXPECT_TRUE(near(compressed, strain * side, 0.03)) << cells;
+    // Uniaxial stress at the compressed strain: F = E A_current eps (nearly; neo-Hookean at 1%).
+    const double expected = mat.youngs_modulus * side * side * compressed / side;
+    EXPECT_TRUE(near(F, expected, 0.03)) << cells << " spheres per side";
+    forces.push_back(F);
+  }
+  EXPECT_TRUE(near(forces[0], forces[1], 0.02)) << "resolution changed the force";
+}
+
+}  // namespace
+}  // namespace fsm::test
