@@ -210,6 +210,44 @@ BENCHMARK(BM_UterusSession)
     ->Unit(benchmark::kMillisecond)
     ->Iterations(1);
 
+// One 1 ms implicit step of the uterus with the probe pressing the body 1 mm (contacts in the
+// solve), the tetrahedral parts on the link law (0) or the continuum law (1). One core. Counters:
+// CG iterations per step and contacts. The target for the continuum law: 300 us.
+void BM_UterusImplicitStepWithContact(benchmark::State& state) {
+  const auto& model = uterus();
+  SphereModel<double> m = model.spheres;
+  if (state.range(0) != 0)
+    for (const Part& p : model.parts)
+      if (p.topology == Topology::tetrahedral) m.set_region_law(p.region, ForceLaw::continuum);
+  Simulation<double>::Options o;
+  o.forces.drag = 5;
+  Simulation<double> sim(m, o);
+  ContactSolver<double> solver(sim.model(), sim.forces());
+  solver.add_instrument(probe(model.spheres, model.part("body")));
+  // Settle 0.3 s with the probe in, so the measured steps are the steady pressing.
+  for (int s = 0; s < 300; ++s) {
+    solver.compute(sim.model(), sim.forces());
+    sim.step(1e-3);
+    solver.collect(sim.forces());
+  }
+  long iterations = 0, steps = 0;
+  for (auto _ : state) {
+    solver.compute(sim.model(), sim.forces());
+    const StepReport<double> r = sim.step(1e-3);
+    solver.collect(sim.forces());
+    iterations += r.solver_iterations;
+    ++steps;
+  }
+  state.counters["cg_iterations"] = double(iterations) / double(std::max(steps, 1L));
+  state.counters["contacts"] = double(solver.num_contacts());
+  state.counters["tetrahedra"] = double(m.num_tetrahedra());
+}
+BENCHMARK(BM_UterusImplicitStepWithContact)
+    ->Arg(0)
+    ->Arg(1)
+    ->ArgName("continuum")
+    ->Unit(benchmark::kMicrosecond);
+
 const bool registered = [] {
   for (const char* p : {"body", "fibroid", "ovary_left", "ligament_left", "tube_left"}) {
     benchmark::RegisterBenchmark((std::string("BM_UterusContact/") + p + "/parts:1").c_str(),

@@ -11,7 +11,12 @@ Geometry and loading (docs/validation.md):
 - "punch": the top nodes with |x - 10| <= 2 and |y - 10| <= 2 moved down by d, held in x and y
   (a bonded 4 x 4 mm flat punch; the mesh has element boundaries on the punch edges);
 - d from 0 to 2.5 mm in 30 equal increments (5 mm/min sampled at 1 Hz; the material is
-  rate-independent, so the static increments are the samples).
+  rate-independent, so the static increments are the samples); `samples` sets another count.
+
+Also: the contact cases "sphere" (rigid, R 5 mm) and "cylinder" (rigid flat end, R 3 mm),
+frictionless, on a graded quarter block (write_contact_inp, run_contact); and C3D4 on a given
+tetrahedral mesh of the full block (run_tet_mesh; command line `fem.py tetmesh MODEL.fsm CASE NU`
+and `fem.py tetcheck`). See validation/reference/README.md.
 """
 
 import os
@@ -27,6 +32,17 @@ DEPTH = 2.5  # mm
 SAMPLES = 30
 
 
+CCX_MEMORY_GB = float(os.environ.get("FSM_CCX_MEMORY_GB", 8))
+
+
+def _limit_memory():
+    """preexec_fn of the ccx runs: caps the address space (a shared machine; ccx 2.20's contact
+    once grew past 20 GB) so that a runaway run fails instead of exhausting memory."""
+    import resource
+    lim = int(CCX_MEMORY_GB * 2 ** 30)
+    resource.setrlimit(resource.RLIMIT_AS, (lim, lim))
+
+
 def neo_hooke_constants(E_pa, nu):
     """C10 and D1 (MPa units) of CalculiX's NEO HOOKE for Young's modulus E (Pa), Poisson nu."""
     E = E_pa * 1e-6
@@ -35,7 +51,7 @@ def neo_hooke_constants(E_pa, nu):
     return mu / 2, 2 / K
 
 
-def write_inp(path, case, n, E_pa, nu, depth=DEPTH, samples=SAMPLES):
+def write_inp(path, case, n, E_pa, nu, depth=DEPTH, samples=SAMPLES, solver=None):
     """A quarter of the block, [10, 20] x [10, 20] x [0, 10] mm (both cases are symmetric about
     x = 10 and y = 10: symmetry conditions there), as a structured C3D20R mesh of n x n x n
     elements of 10/n mm; n must be a multiple of 5 for the punch's edge (2 mm from the centre)
@@ -92,11 +108,21 @@ def write_inp(path, case, n, E_pa, nu, depth=DEPTH, samples=SAMPLES):
         f.write(f"{c10:.9g}, {d1:.9g}\n")
         f.write("*SOLID SECTION, ELSET=EALL, MATERIAL=TISSUE\n")
         f.write("*BOUNDARY\nBOTTOM, 1, 3, 0.\nTOP, 1, 2, 0.\nSYMX, 1, 1, 0.\nSYMY, 2, 2, 0.\n")
-        f.write("*STEP, NLGEOM, INC=10000\n*STATIC, DIRECT\n")
-        f.write(f"{1.0 / samples:.9g}, 1.0\n")
+        f.write(step_cards(samples, solver))
         f.write(f"*BOUNDARY\nTOP, 3, 3, {-depth:.9g}\n")
         f.write("*NODE PRINT, NSET=TOP, TOTALS=ONLY\nRF\n*END STEP\n")
     return len(ids), len(elems), len(top)
+
+
+def step_cards(samples, solver=None):
+    """The NLGEOM static step with `samples` fixed increments (DIRECT: every increment is a sample;
+    a diverging increment stops ccx, and the run_* functions then retry with more increments).
+    Automatic incrementation with *TIME POINTS was tried and dropped: after a cutback, ccx 2.20
+    inserted zero-length increments, whose contact matrix was singular."""
+    out = "*STEP, NLGEOM, INC=10000\n"
+    out += f"*STATIC, SOLVER={solver}, DIRECT\n" if solver else "*STATIC, DIRECT\n"
+    out += f"{1.0 / samples:.9g}, 1.0\n"
+    return out
 
 
 def parse_dat(path):
@@ -110,22 +136,481 @@ def parse_dat(path):
     return np.array(times), np.array(fz)
 
 
-def run(workdir, case, n, E_pa, nu, depth=DEPTH, samples=SAMPLES, ccx="/usr/bin/ccx", threads=1):
-    """Runs one reference; returns (displacement mm, force N) arrays starting at (0, 0)."""
+def run(workdir, case, n, E_pa, nu, depth=DEPTH, samples=SAMPLES, ccx="/usr/bin/ccx", threads=1,
+        solver=None, refine=(1, 2, 3)):
+    """Runs one reference; returns (displacement mm, force N) arrays starting at (0, 0). If ccx
+    fails (a diverging fixed increment: e.g. n = 15 compression with 0.5 mm steps), retries with
+    k times the increments for each k in `refine` and keeps every k-th."""
     os.makedirs(workdir, exist_ok=True)
     job = f"{case}_n{n}_nu{nu:g}".replace(".", "p")
     inp = os.path.join(workdir, job + ".inp")
-    write_inp(inp, case, n, E_pa, nu, depth, samples)
     env = dict(os.environ, OMP_NUM_THREADS=str(threads), CCX_NPROC_EQUATION_SOLVER=str(threads))
-    r = subprocess.run([ccx, "-i", job], cwd=workdir, env=env, capture_output=True, text=True)
-    t, fz = parse_dat(os.path.join(workdir, job + ".dat"))
-    if r.returncode != 0 or len(t) == 0 or abs(t[-1] - 1.0) > 1e-6:
-        raise RuntimeError(f"ccx failed on {job}: rc {r.returncode}, {len(t)} increments\n"
-                           + r.stdout[-2000:])
+    errors = []
+    for k in refine:
+        write_inp(inp, case, n, E_pa, nu, depth, samples * k, solver)
+        r = subprocess.run([ccx, "-i", job], cwd=workdir, env=env, capture_output=True, text=True,
+                           preexec_fn=_limit_memory)
+        t, fz = parse_dat(os.path.join(workdir, job + ".dat"))
+        if r.returncode == 0 and len(t) == samples * k and abs(t[-1] - 1.0) < 1e-6:
+            break
+        errors.append(f"{samples * k} increments: rc {r.returncode}, {len(t)} done\n" + r.stdout[-1500:])
+    else:
+        raise RuntimeError(f"ccx failed on {job}:\n" + "\n".join(errors))
+    t, fz = t[k - 1::k], fz[k - 1::k]
     d = np.concatenate([[0.0], t * depth])
     F = np.concatenate([[0.0], -4 * fz])  # whole block (4 quarters); compressive force positive
+    run.last_refine = k
     return d, F
 
 
 def have_ccx(ccx="/usr/bin/ccx"):
     return os.path.exists(ccx) or shutil.which("ccx") is not None
+
+
+# ---------------------------------------------------------------------------------------------
+# Smooth indenters through real contact: a rigid sphere (R = 5 mm) and a rigid flat-ended
+# cylinder (R = 3 mm), frictionless, on the same quarter block.
+
+SPHERE_R = 5.0  # mm
+CYLINDER_R = 3.0  # mm
+CONTACT_CASES = ("sphere", "cylinder")
+GRADING = 0.5  # x = 10 + 10 (g s + (1 - g) s^2) style grading, see graded()
+# MPa/mm: the pressure-overclosure slope (linear penalty). The cylinder's sharp edge made Newton
+# diverge at 50 on n = 10 (contact status chatter at the rim); 10 keeps its nodal penetration
+# well below 1 % of the displacement (mean pressure ~0.015 MPa -> ~1.5 um at 2.5 mm).
+PENALTY = {"sphere": 50.0, "cylinder": 10.0}
+# Cells per side of the indenter's quarter-disc surface mesh, the same on every block mesh (the
+# faceting error must not change with n): sphere 80 deg / 32 cells, chord sagitta 1.2 um; cylinder
+# rim 32 segments per 90 deg, sagitta 0.9 um (the flat end itself is exact).
+INDENTER_CELLS = {"sphere": 32, "cylinder": 16}
+
+
+def graded(s, beta=GRADING):
+    """Maps the uniform parameter s in [0, 1] to [0, 1] with elements (1 - beta) times the mean
+    size at s = 0 and (1 + beta) times at s = 1 (quadratic map: sizes grow linearly). The same
+    map on every mesh, so the meshes of a family differ only in n (h ~ 1/n)."""
+    return (1 - beta) * s + beta * s * s
+
+
+def block_mesh(n, beta=0.0):
+    """The quarter block [10, 20] x [10, 20] x [0, 10] mm as n x n x n C3D20R elements.
+    beta = 0: uniform; beta > 0: graded toward the top's centre (x = y = 10, z = 10): the element
+    size goes from (1 - beta) 10/n at the centre/top to (1 + beta) 10/n at the far side/bottom.
+    Returns (ids {(i, j, k) on the half grid: node id}, coords {id: (x, y, z)}, elements)."""
+    x0 = W / 2
+
+    def cx(i):  # half-grid index -> coordinate
+        return x0 + (W / 2) * graded(i / (2 * n), beta)
+
+    def cz(k):
+        return H - H * graded(1 - k / (2 * n), beta)
+
+    ids, coords = {}, {}
+    for k in range(2 * n + 1):
+        for j in range(2 * n + 1):
+            for i in range(2 * n + 1):
+                if (i % 2) + (j % 2) + (k % 2) >= 2:
+                    continue
+                v = len(ids) + 1
+                ids[(i, j, k)] = v
+                coords[v] = (cx(i), cx(j), cz(k))
+    c = [(0, 0, 0), (2, 0, 0), (2, 2, 0), (0, 2, 0), (0, 0, 2), (2, 0, 2), (2, 2, 2), (0, 2, 2)]
+    mid = [(1, 0, 0), (2, 1, 0), (1, 2, 0), (0, 1, 0), (1, 0, 2), (2, 1, 2), (1, 2, 2), (0, 1, 2),
+           (0, 0, 1), (2, 0, 1), (2, 2, 1), (0, 2, 1)]
+    elems = []
+    for ez in range(n):
+        for ey in range(n):
+            for ex in range(n):
+                i0, j0, k0 = 2 * ex, 2 * ey, 2 * ez
+                elems.append([ids[(i0 + a, j0 + b, k0 + d)] for a, b, d in c + mid])
+    return ids, coords, elems
+
+
+def _disc(u, v):
+    """The unit square [0, 1]^2 onto the unit quarter disc (elliptical grid mapping): smooth, no
+    degenerate cells, the edges u = 0 and v = 0 on the axes."""
+    return u * np.sqrt(1 - v * v / 2), v * np.sqrt(1 - u * u / 2)
+
+
+def indenter_mesh(case, m, first_node, first_elem, thickness=0.5, wall=False):
+    """A rigid indenter's contact surface as one layer of C3D8 elements (all nodes prescribed, so
+    they are rigid) whose face S1 is the indenter's surface, for the quarter x, y >= 10 mm, at rest
+    just touching the top (z = 10) at the centre. m: cells per quarter-disc side.
+    sphere: the lower quarter hemisphere up to a polar angle of 80 deg (r = 4.92 mm);
+    cylinder: the flat end (r <= 3) and, with wall=True, the side wall up to 2 mm above it.
+    Returns (node lines, element lines, element ids, node ids)."""
+    pts = []  # surface point, inward point (into the indenter)
+    if case == "sphere":
+        R = SPHERE_R
+        zc = H + R
+        tmax = np.radians(80.0)
+        grid = {}
+        for b in range(m + 1):
+            for a in range(m + 1):
+                X, Y = _disc(a / m, b / m)
+                rho = np.hypot(X, Y)
+                th = rho * tmax
+                if rho > 0:
+                    dx, dy = X / rho, Y / rho
+                else:
+                    dx, dy = 0.0, 0.0
+                out = (W / 2 + R * np.sin(th) * dx, W / 2 + R * np.sin(th) * dy, zc - R * np.cos(th))
+                Ri = R - thickness
+                inn = (W / 2 + Ri * np.sin(th) * dx, W / 2 + Ri * np.sin(th) * dy, zc - Ri * np.cos(th))
+                grid[(a, b)] = len(pts)
+                pts.append((out, inn))
+        cells = [((a, b), (a + 1, b), (a + 1, b + 1), (a, b + 1)) for b in range(m) for a in range(m)]
+    elif case == "cylinder":
+        R = CYLINDER_R
+        grid = {}
+        for b in range(m + 1):
+            for a in range(m + 1):
+                X, Y = _disc(a / m, b / m)
+                out = (W / 2 + R * X, W / 2 + R * Y, H)
+                sc = (R - thickness) / R  # the inner face shrunk so the rim cells meet the wall's
+                inn = (W / 2 + R * sc * X, W / 2 + R * sc * Y, H + thickness)
+                grid[(a, b)] = len(pts)
+                pts.append((out, inn))
+        cells = [((a, b), (a + 1, b), (a + 1, b + 1), (a, b + 1)) for b in range(m) for a in range(m)]
+        # the side wall: without it, the block's surface near the edge moved inward under the
+        # flat end's rim and ended inside the cylinder (0.41 mm on n = 7, see penetration());
+        # with it (and a penalty of 50 MPa/mm) ccx 2.20 diverged on n = 10 and grew past 20 GB
+        rim = [(m, b) for b in range(m + 1)] + [(a, m) for a in range(m - 1, -1, -1)]
+        nwall = max(2, m // 3) if wall else 0
+        for r_i in range(1, nwall + 1):
+            z = H + 2.0 * (r_i / nwall) ** 1.5  # finer near the edge
+            for q, (a, b) in enumerate(rim):
+                X, Y = _disc(a / m, b / m)
+                rr = np.hypot(X, Y)
+                dx, dy = X / rr, Y / rr
+                out = (W / 2 + R * dx, W / 2 + R * dy, z)
+                inn = (W / 2 + (R - thickness) * dx, W / 2 + (R - thickness) * dy, z + thickness)
+                grid[("w", r_i, q)] = len(pts)
+                pts.append((out, inn))
+        for r_i in range(nwall):
+            for q in range(len(rim) - 1):
+                lo0 = rim[q] if r_i == 0 else ("w", r_i, q)
+                lo1 = rim[q + 1] if r_i == 0 else ("w", r_i, q + 1)
+                cells.append((lo0, lo1, ("w", r_i + 1, q + 1), ("w", r_i + 1, q)))
+    else:
+        raise ValueError(case)
+    node_lines, nid = [], {}
+    for key, idx in grid.items():
+        nid[key] = (first_node + 2 * idx, first_node + 2 * idx + 1)
+        out, inn = pts[idx]
+        node_lines.append(f"{nid[key][0]}, {out[0]:.9g}, {out[1]:.9g}, {out[2]:.9g}")
+        node_lines.append(f"{nid[key][1]}, {inn[0]:.9g}, {inn[1]:.9g}, {inn[2]:.9g}")
+    xyz = {}
+    for key, idx in grid.items():
+        xyz[nid[key][0]], xyz[nid[key][1]] = pts[idx]
+    elem_lines, eids = [], []
+    for e, cell in enumerate(cells):
+        o = [nid[k][0] for k in cell]
+        i = [nid[k][1] for k in cell]
+        conn = o + i
+        # positive Jacobian: (p2 - p1) x (p4 - p1) . (p5 - p1) > 0, else reverse the faces' order
+        P = [np.array(xyz[v]) for v in conn]
+        if np.dot(np.cross(P[1] - P[0], P[3] - P[0]), P[4] - P[0]) < 0:
+            o, i = o[::-1], i[::-1]
+            conn = o + i
+        eid = first_elem + e
+        eids.append(eid)
+        elem_lines.append(f"{eid}, " + ", ".join(map(str, conn)))
+    all_nodes = sorted(v for pair in nid.values() for v in pair)
+    return node_lines, elem_lines, eids, all_nodes
+
+
+def write_contact_inp(path, case, n, E_pa, nu, depth=DEPTH, samples=10, beta=GRADING, m=None,
+                      penalty=None, solver=None, wall=True):
+    """The quarter block (graded toward the contact, see block_mesh) indented by a rigid,
+    frictionless sphere or flat-ended cylinder through surface-to-surface penalty contact; the
+    indenter's nodes are all prescribed (rigid), x and y fixed, z moved down by `depth` in
+    `samples` fixed increments. Outputs: RF totals on the indenter (set IND), U on the top's
+    nodes (set TOPALL) for the penetration check."""
+    ids, coords, elems = block_mesh(n, beta)
+    m = m or INDENTER_CELLS[case]
+    penalty = penalty or PENALTY[case]
+    nn = len(ids)
+    ind_nodes, ind_elems, ind_eids, ind_ids = indenter_mesh(case, m, nn + 1, len(elems) + 1,
+                                                            wall=wall)
+    bottom = [v for (i, j, k), v in ids.items() if k == 0]
+    sym_x = [v for (i, j, k), v in ids.items() if i == 0]
+    sym_y = [v for (i, j, k), v in ids.items() if j == 0]
+    top_all = [v for (i, j, k), v in ids.items() if k == 2 * n]
+    c10, d1 = neo_hooke_constants(E_pa, nu)
+    with open(path, "w") as f:
+        f.write(f"** libfsm validation: {case} contact, {n}x{n}x{n} C3D20R graded beta={beta}, "
+                f"E={E_pa} Pa, nu={nu}, penalty {penalty} MPa/mm\n")
+        f.write("*NODE, NSET=NALL\n")
+        for v in range(1, nn + 1):
+            x, y, z = coords[v]
+            f.write(f"{v}, {x:.9g}, {y:.9g}, {z:.9g}\n")
+        f.write("*NODE, NSET=IND\n" + "\n".join(ind_nodes) + "\n")
+        f.write("*ELEMENT, TYPE=C3D20R, ELSET=EALL\n")
+        for e, conn in enumerate(elems, 1):
+            f.write(f"{e}, " + ", ".join(map(str, conn[:15])) + ",\n" + ", ".join(map(str, conn[15:])) + "\n")
+        f.write("*ELEMENT, TYPE=C3D8, ELSET=EIND\n" + "\n".join(ind_elems) + "\n")
+        for name, s in (("BOTTOM", bottom), ("TOPALL", top_all), ("SYMX", sym_x), ("SYMY", sym_y)):
+            f.write(f"*NSET, NSET={name}\n")
+            for a in range(0, len(s), 16):
+                f.write(", ".join(map(str, s[a:a + 16])) + ",\n")
+        # top faces of the top layer of elements (face S2 = nodes 5-8 of C3D20R)
+        top_elems = [e for e in range(1, len(elems) + 1) if (e - 1) // (n * n) == n - 1]
+        f.write("*SURFACE, NAME=SSLAVE, TYPE=ELEMENT\n")
+        f.write("".join(f"{e}, S2\n" for e in top_elems))
+        f.write("*SURFACE, NAME=SMASTER, TYPE=ELEMENT\n")
+        f.write("".join(f"{e}, S1\n" for e in ind_eids))
+        f.write("*MATERIAL, NAME=TISSUE\n*HYPERELASTIC, NEO HOOKE\n")
+        f.write(f"{c10:.9g}, {d1:.9g}\n")
+        f.write("*SOLID SECTION, ELSET=EALL, MATERIAL=TISSUE\n")
+        # the indenter: any material (all its nodes are prescribed)
+        f.write("*MATERIAL, NAME=RIGID\n*ELASTIC\n1000., 0.3\n")
+        f.write("*SOLID SECTION, ELSET=EIND, MATERIAL=RIGID\n")
+        f.write("*SURFACE INTERACTION, NAME=SI1\n*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR\n")
+        f.write(f"{penalty:.9g}\n")
+        f.write("*CONTACT PAIR, INTERACTION=SI1, TYPE=SURFACE TO SURFACE\nSSLAVE, SMASTER\n")
+        f.write("*BOUNDARY\nBOTTOM, 1, 3, 0.\nSYMX, 1, 1, 0.\nSYMY, 2, 2, 0.\nIND, 1, 3, 0.\n")
+        f.write(step_cards(samples, solver))
+        f.write(f"*BOUNDARY\nIND, 3, 3, {-depth:.9g}\n")
+        f.write("*NODE PRINT, NSET=IND, TOTALS=ONLY\nRF\n")
+        f.write("*NODE PRINT, NSET=TOPALL\nU\n")
+        f.write("*END STEP\n")
+    return nn, len(elems), coords, top_all
+
+
+def parse_dat_set(path, nset):
+    """(time, total reaction force in z) per increment for the node set `nset` (TOTALS=ONLY)."""
+    times, fz = [], []
+    text = open(path).read()
+    for mm in re.finditer(r"total force \(fx,fy,fz\) for set " + nset + r" and time\s+([-+0-9.Ee]+)\s*\n\s*"
+                          r"([-+0-9.Ee]+)\s+([-+0-9.Ee]+)\s+([-+0-9.Ee]+)", text):
+        times.append(float(mm.group(1)))
+        fz.append(float(mm.group(4)))
+    return np.array(times), np.array(fz)
+
+
+def parse_dat_u(path, nset):
+    """{time: {node: (ux, uy, uz)}} from *NODE PRINT U blocks for `nset`."""
+    out = {}
+    text = open(path).read()
+    blocks = re.split(r"\n\s*displacements \(vx,vy,vz\) for set ", text)
+    for b in blocks[1:]:
+        head, _, body = b.partition("\n")
+        name, _, t = head.partition(" and time")
+        if name.strip().upper() != nset.upper():
+            continue
+        u = {}
+        for line in body.split("\n"):
+            parts = line.split()
+            if len(parts) == 4:
+                try:
+                    u[int(parts[0])] = tuple(float(x) for x in parts[1:])
+                except ValueError:
+                    break
+            elif parts:
+                break
+        out[float(t)] = u
+    return out
+
+
+def penetration(case, coords, u, d):
+    """Largest penetration (mm) of the block's top nodes (deformed) into the indenter moved
+    down by d: sphere, R - |p - c|; cylinder, p_z - (10 - d) where r <= R."""
+    worst = 0.0
+    for v, (ux, uy, uz) in u.items():
+        x, y, z = coords[v]
+        p = np.array([x + ux, y + uy, z + uz])
+        if case == "sphere":
+            c = np.array([W / 2, W / 2, H + SPHERE_R - d])
+            pen = SPHERE_R - np.linalg.norm(p - c)
+        else:
+            r = np.hypot(p[0] - W / 2, p[1] - W / 2)
+            pen = p[2] - (H - d) if r <= CYLINDER_R else 0.0
+        worst = max(worst, pen)
+    return worst
+
+
+def run_contact(workdir, case, n, E_pa, nu, depth=DEPTH, samples=10, ccx="/usr/bin/ccx", threads=1,
+                refine=(1, 2), **kw):
+    """Runs one contact reference; returns (displacement mm, force N, largest penetration mm per
+    sample, k), all starting at 0. If ccx fails (a diverging fixed increment), retries with k
+    times the increments for each k in `refine` and keeps every k-th (the samples do not
+    change)."""
+    os.makedirs(workdir, exist_ok=True)
+    job = f"{case}_n{n}_nu{nu:g}".replace(".", "p")
+    inp = os.path.join(workdir, job + ".inp")
+    env = dict(os.environ, OMP_NUM_THREADS=str(threads), CCX_NPROC_EQUATION_SOLVER=str(threads))
+    errors = []
+    for k in refine:
+        _, _, coords, _ = write_contact_inp(inp, case, n, E_pa, nu, depth, samples * k, **kw)
+        r = subprocess.run([ccx, "-i", job], cwd=workdir, env=env, capture_output=True, text=True,
+                           preexec_fn=_limit_memory)
+        dat = os.path.join(workdir, job + ".dat")
+        t, fz = parse_dat_set(dat, "IND")
+        if r.returncode == 0 and len(t) == samples * k and abs(t[-1] - 1.0) < 1e-6:
+            break
+        errors.append(f"{samples * k} increments: rc {r.returncode}, {len(t)} done\n" + r.stdout[-1500:])
+    else:
+        raise RuntimeError(f"ccx failed on {job}:\n" + "\n".join(errors))
+    us = parse_dat_u(dat, "TOPALL")
+    t, fz = t[k - 1::k], fz[k - 1::k]
+    pen = [0.0] + [penetration(case, coords, us[ti], ti * depth) for ti in t]
+    d = np.concatenate([[0.0], t * depth])
+    F = np.concatenate([[0.0], -4 * fz])  # the indenter pushes down: its reaction is upward
+    return d, F, np.array(pen), k
+
+
+# ---------------------------------------------------------------------------------------------
+# Same-mesh linear tetrahedra: CalculiX C3D4 on a given tetrahedral mesh (e.g. a libfsm model's).
+
+def write_tet_inp(path, case, nodes_mm, tets, nu, E=13150.0, depth=DEPTH, samples=SAMPLES):
+    """The full block (no symmetry) as C3D4 elements on the given mesh; bottom nodes (z within
+    1e-6 mm of the lowest z) bonded; the tool's nodes (top face: z within 1e-6 mm of the highest
+    z; compression all of them, punch those with |x - 10| <= 2 and |y - 10| <= 2 mm) held in x, y
+    and moved down by `depth`. Tetrahedra with a negative orientation are flipped."""
+    P = np.asarray(nodes_mm, dtype=float)
+    T = np.asarray(tets, dtype=np.int64).copy()
+    vol = np.einsum("ij,ij->i", np.cross(P[T[:, 1]] - P[T[:, 0]], P[T[:, 2]] - P[T[:, 0]]),
+                    P[T[:, 3]] - P[T[:, 0]])
+    if np.any(vol == 0):
+        raise ValueError(f"{int(np.sum(vol == 0))} degenerate tetrahedra")
+    T[vol < 0] = T[vol < 0][:, [0, 2, 1, 3]]
+    tol = 1e-6
+    zmin, zmax = P[:, 2].min(), P[:, 2].max()
+    bottom = np.nonzero(P[:, 2] < zmin + tol)[0] + 1
+    top = np.nonzero(P[:, 2] > zmax - tol)[0]
+    if case == "compression":
+        tool = top
+    elif case == "punch":
+        cx, cy = W / 2, W / 2
+        tool = top[(np.abs(P[top, 0] - cx) <= PUNCH / 2 + 1e-9) & (np.abs(P[top, 1] - cy) <= PUNCH / 2 + 1e-9)]
+    else:
+        raise ValueError(case)
+    if len(tool) == 0:
+        raise ValueError(f"{case}: no tool nodes on the top face (z = {zmax:g} mm)")
+    tool = tool + 1
+    c10, d1 = neo_hooke_constants(E, nu)
+    with open(path, "w") as f:
+        f.write(f"** libfsm validation: {case}, C3D4 on a given mesh ({len(P)} nodes, {len(T)} tets), "
+                f"E={E} Pa, nu={nu}\n")
+        f.write("*NODE, NSET=NALL\n")
+        for i, (x, y, z) in enumerate(P, 1):
+            f.write(f"{i}, {x:.9g}, {y:.9g}, {z:.9g}\n")
+        f.write("*ELEMENT, TYPE=C3D4, ELSET=EALL\n")
+        for e, t in enumerate(T, 1):
+            f.write(f"{e}, {t[0] + 1}, {t[1] + 1}, {t[2] + 1}, {t[3] + 1}\n")
+        for name, sel in (("BOTTOM", bottom), ("TOP", tool)):
+            f.write(f"*NSET, NSET={name}\n")
+            for a in range(0, len(sel), 16):
+                f.write(", ".join(map(str, sel[a:a + 16])) + ",\n")
+        f.write("*MATERIAL, NAME=TISSUE\n*HYPERELASTIC, NEO HOOKE\n")
+        f.write(f"{c10:.9g}, {d1:.9g}\n")
+        f.write("*SOLID SECTION, ELSET=EALL, MATERIAL=TISSUE\n")
+        f.write("*BOUNDARY\nBOTTOM, 1, 3, 0.\nTOP, 1, 2, 0.\n")
+        f.write(step_cards(samples))
+        f.write(f"*BOUNDARY\nTOP, 3, 3, {-depth:.9g}\n")
+        f.write("*NODE PRINT, NSET=TOP, TOTALS=ONLY\nRF\n*END STEP\n")
+    return len(bottom), len(tool)
+
+
+def run_tet_mesh(work, case, nodes_mm, tets, nu, E=13150.0, depth=DEPTH, samples=SAMPLES,
+                 ccx="/usr/bin/ccx", threads=1, job=None):
+    """CalculiX C3D4 (NLGEOM, the same neo-Hookean) on a tetrahedral mesh of the full block:
+    nodes_mm (N, 3) in mm, tets (T, 4) node indices from 0. Returns (displacements mm, forces N)
+    at samples + 1 points (0 included); the force is the whole tool's (no symmetry factor)."""
+    os.makedirs(work, exist_ok=True)
+    job = job or f"tet_{case}_nu{nu:g}".replace(".", "p")
+    write_tet_inp(os.path.join(work, job + ".inp"), case, nodes_mm, tets, nu, E, depth, samples)
+    env = dict(os.environ, OMP_NUM_THREADS=str(threads), CCX_NPROC_EQUATION_SOLVER=str(threads))
+    r = subprocess.run([ccx, "-i", job], cwd=work, env=env, capture_output=True, text=True,
+                       preexec_fn=_limit_memory)
+    t, fz = parse_dat(os.path.join(work, job + ".dat"))
+    if r.returncode != 0 or len(t) == 0 or abs(t[-1] - 1.0) > 1e-6:
+        raise RuntimeError(f"ccx failed on {job}: rc {r.returncode}, {len(t)} increments\n"
+                           + r.stdout[-2000:])
+    return np.concatenate([[0.0], t * depth]), np.concatenate([[0.0], -fz])
+
+
+def load_fsm_tets(path):
+    """(nodes mm (N, 3), tets (T, 4)) of a libfsm model file, through the Python bindings."""
+    try:
+        import fsm
+    except ImportError:
+        import sys
+        sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "build",
+                                        "python"))
+        import fsm
+    m = fsm.load_model(path)
+    P = np.array(m.spheres.rest_positions, dtype=float) * 1000.0  # m -> mm
+    T = np.array(m.spheres.tetrahedra, dtype=np.int64)
+    if T.size == 0:
+        raise ValueError(f"{path}: the model has no tetrahedra")
+    return P, T
+
+
+def tet_selfcheck(work, nu=0.49, E=13150.0, ccx="/usr/bin/ccx"):
+    """run_tet_mesh on a 2 x 2 x 1 mm block (2 x 2 x 1 cubes, 6 tetrahedra each) compressed by
+    0.25 mm: every node is on the bonded bottom or the tool, so the deformation is homogeneous
+    uniaxial strain, stretch l = 1 - d / 1 mm, and the exact force of ccx's neo-Hookean
+    W = C10 (J^(-2/3) I1 - 3) + (J - 1)^2 / D1 is F = -A (4/3 C10 (l^(1/3) - l^(-5/3))
+    + 2 (l - 1) / D1) (small strain: A M eps, M = E (1 - nu) / ((1 + nu)(1 - 2 nu))).
+    Returns rows (d, F_ccx, F_exact, F_small_strain) and the largest relative difference."""
+    idx, P = {}, []
+    for k in range(2):
+        for j in range(3):
+            for i in range(3):
+                idx[(i, j, k)] = len(P)
+                P.append((W / 2 - 1 + i, W / 2 - 1 + j, float(k)))
+    kuhn = [(0, 1, 3, 7), (0, 1, 5, 7), (0, 2, 3, 7), (0, 2, 6, 7), (0, 4, 5, 7), (0, 4, 6, 7)]
+    T = []
+    for j in range(2):
+        for i in range(2):
+            c = [idx[(i + (b & 1), j + ((b >> 1) & 1), (b >> 2) & 1)] for b in range(8)]
+            T += [[c[a] for a in t] for t in kuhn]
+    d, F = run_tet_mesh(work, "compression", np.array(P), np.array(T), nu, E, depth=0.25,
+                        samples=10, ccx=ccx, job="tet_selfcheck")
+    c10, d1 = neo_hooke_constants(E, nu)
+    lam = 1 - d
+    Fx = -4.0 * (c10 * 4 / 3 * (lam ** (1 / 3) - lam ** (-5 / 3)) + 2 * (lam - 1) / d1)
+    M = E * 1e-6 * (1 - nu) / ((1 + nu) * (1 - 2 * nu))
+    rel = np.max(np.abs(F[1:] - Fx[1:]) / Fx[1:])
+    return [(a, b, c, 4.0 * M * a) for a, b, c in zip(d, F, Fx)], rel
+
+
+def _main(argv):
+    import argparse
+    import json
+    import time
+    ap = argparse.ArgumentParser(description="CalculiX C3D4 on a libfsm model's tetrahedral mesh: "
+                                 "fem.py tetmesh MODEL.fsm CASE NU; prints JSON")
+    ap.add_argument("command", choices=["tetmesh", "tetcheck"],
+                    help="tetcheck: the uniaxial-strain check of run_tet_mesh (tet_selfcheck)")
+    ap.add_argument("model", nargs="?")
+    ap.add_argument("case", nargs="?", choices=["compression", "punch"])
+    ap.add_argument("nu", nargs="?", type=float)
+    ap.add_argument("--E", type=float, default=13150.0, help="Pa")
+    ap.add_argument("--depth", type=float, default=DEPTH, help="mm")
+    ap.add_argument("--work", default=None)
+    ap.add_argument("--ccx", default="/usr/bin/ccx")
+    a = ap.parse_args(argv)
+    import tempfile
+    work = a.work or tempfile.mkdtemp(prefix="fsm_tet_")
+    if a.command == "tetcheck":
+        rows, rel = tet_selfcheck(work, a.nu if a.nu is not None else 0.49, a.E, a.ccx)
+        print(json.dumps({"check": "uniaxial strain, 2 x 2 x 1 mm, C3D4", "max_relative_error": rel,
+                          "rows_d_Fccx_Fexact_Fsmallstrain": rows}))
+        return
+    if a.model is None or a.case is None or a.nu is None:
+        ap.error("tetmesh needs MODEL CASE NU")
+    P, T = load_fsm_tets(a.model)
+    t0 = time.time()
+    d, F = run_tet_mesh(work, a.case, P, T, a.nu, a.E, a.depth, ccx=a.ccx)
+    print(json.dumps({"model": a.model, "case": a.case, "nu": a.nu, "E_pa": a.E, "nodes": len(P),
+                      "tetrahedra": len(T), "work": work, "seconds": round(time.time() - t0, 1),
+                      "displacement_mm": [round(x, 6) for x in d],
+                      "force_N": [float(f"{x:.6g}") for x in F]}))
+
+
+if __name__ == "__main__":
+    import sys
+    _main(sys.argv[1:])

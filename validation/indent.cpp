@@ -2,17 +2,25 @@
 // the library's own builder from a scene, for the validation against a reference FEM
 // (docs/validation.md).
 //
-//   fsm-indent SCENE.json --case compression|punch [--depth MM] [--speed MM_PER_MIN]
-//              [--samples N] [--dt S] [--integrator NAME] [--stiffness-scale F]
-//              [--poisson NU | --kappa PA] [--density-scale F] [--out CSV]
+//   fsm-indent SCENE.json --case compression|punch|sphere|cylinder [--law links|continuum]
+//              [--nu NU] [--depth MM] [--speed MM_PER_MIN] [--samples N] [--dt S]
+//              [--integrator NAME] [--stiffness-scale F] [--poisson NU | --kappa PA]
+//              [--density-scale F] [--out CSV]
 //
 // The scene's single part is a 20 x 20 x 10 mm block (z up). Its lowest layer of spheres is fixed
-// (bottom bonded); the loaded spheres are held in x and y and moved down at the given speed
-// (bonded tool): "compression" = the top layer (a platen over the whole top), "punch" = the top
-// spheres within 2 mm of the top's centre in x and y (a 4 x 4 mm flat punch). The force on the
-// tool (the sum of the z forces of the links, and of the volume term, on the loaded spheres) is
-// sampled at `samples` equal steps of the displacement (at 5 mm/min to 2.5 mm, 30 samples = 1 Hz).
-// Gravity is off (the reference has none). Prints a JSON summary on stdout.
+// (bottom bonded). The tool moves down at the given speed:
+// - bonded (the loaded spheres held in x and y and moved down): "compression" = the top layer (a
+//   platen over the whole top), "punch" = the top spheres within 2 mm of the top's centre in x and
+//   y (a 4 x 4 mm flat punch);
+// - through contact (ContactSolver, frictionless, as a user's instrument): "sphere" = a rigid ball
+//   of radius 5 mm, "cylinder" = a rigid flat-ended cylinder of radius 3 mm (axis z), both over
+//   the top's centre and touching the top at the start.
+// --law continuum gives the part the continuum law (neo-Hookean tetrahedra) with Poisson's ratio
+// --nu (default 0.49); --law links (the default) keeps the paper's link network, optionally with
+// the volume term (--poisson / --kappa). The force on the tool (bonded: the z-sum of the internal
+// forces on the loaded spheres; contact: the z force of the instrument's wrench) is sampled at
+// `samples` equal steps of the displacement (at 5 mm/min to 2.5 mm, 30 samples = 1 Hz). Gravity
+// is off (the reference has none). Prints a JSON summary on stdout.
 
 #include <algorithm>
 #include <chrono>
@@ -20,6 +28,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -33,6 +42,8 @@ namespace {
 struct Args {
   std::string scene;
   std::string load_case = "compression";
+  std::string law = "links";
+  double nu = 0.49;
   double depth = 2.5e-3;     // m
   double speed = 5e-3 / 60;  // m/s
   int samples = 30;          //
@@ -49,9 +60,10 @@ struct Args {
 [[noreturn]] void usage(const std::string& why) {
   std::fprintf(stderr,
                "fsm-indent: %s\n"
-               "usage: fsm-indent SCENE.json --case compression|punch [--depth MM] [--speed "
-               "MM_PER_MIN] [--samples N] [--dt S] [--integrator NAME] [--stiffness-scale F] "
-               "[--poisson NU | --kappa PA] [--density-scale F] [--out CSV]\n",
+               "usage: fsm-indent SCENE.json --case compression|punch|sphere|cylinder [--law "
+               "links|continuum] [--nu NU] [--depth MM] [--speed MM_PER_MIN] [--samples N] [--dt "
+               "S] [--integrator NAME] [--stiffness-scale F] [--poisson NU | --kappa PA] "
+               "[--density-scale F] [--out CSV]\n",
                why.c_str());
   std::exit(2);
 }
@@ -66,6 +78,10 @@ Args parse(int argc, char** argv) {
     };
     if (k == "--case")
       a.load_case = value();
+    else if (k == "--law")
+      a.law = value();
+    else if (k == "--nu")
+      a.nu = std::atof(value().c_str());
     else if (k == "--depth")
       a.depth = std::atof(value().c_str()) * 1e-3;
     else if (k == "--speed")
@@ -96,7 +112,12 @@ Args parse(int argc, char** argv) {
       a.scene = k;
   }
   if (a.scene.empty()) usage("no scene");
-  if (a.load_case != "compression" && a.load_case != "punch") usage("bad --case " + a.load_case);
+  if (a.load_case != "compression" && a.load_case != "punch" && a.load_case != "sphere" &&
+      a.load_case != "cylinder")
+    usage("bad --case " + a.load_case);
+  if (a.law != "links" && a.law != "continuum") usage("bad --law " + a.law);
+  if (a.law == "continuum" && (a.poisson > 0 || a.kappa > 0))
+    usage("the volume term (--poisson, --kappa) is for the link law; give --nu");
   if (!(a.depth > 0) || !(a.speed > 0) || !(a.dt > 0) || a.samples < 1 ||
       !(a.stiffness_scale > 0) || !(a.density_scale > 0))
     usage("depth, speed, dt, samples, scales must be positive");
@@ -119,6 +140,14 @@ int run(const Args& a) {
   TissueModel<double> tissue = build::build_model(a.scene, &report);
   SphereModel<double>& model = tissue.spheres;
   const Index n = model.num_nodes();
+  const bool contact = a.load_case == "sphere" || a.load_case == "cylinder";
+  if (a.law == "continuum") {
+    // E as the scene gives it, nu as asked: the law takes them as they are (no factor).
+    Material<double> m = model.region(0).material;
+    m.poisson_ratio = a.nu;
+    model.set_region_material(0, m);
+    model.set_region_law(0, ForceLaw::continuum);
+  }
 
   // The global calibration factor multiplies every link's constants (stiffness and damping, so
   // the retardation time is unchanged).
@@ -136,7 +165,7 @@ int run(const Args& a) {
   std::vector<Index> driven;
   for (Index i = 0; i < n; ++i) {
     model.set_fixed(i, rest(i, 2) <= zmin + tol);  // the lowest layer, whatever the scene fixed
-    if (rest(i, 2) >= zmax - tol) {
+    if (!contact && rest(i, 2) >= zmax - tol) {
       const bool in_punch =
           std::abs(rest(i, 0) - cx) <= 2e-3 + tol && std::abs(rest(i, 1) - cy) <= 2e-3 + tol;
       if (a.load_case == "compression" || in_punch) {
@@ -145,7 +174,7 @@ int run(const Args& a) {
       }
     }
   }
-  if (driven.empty()) throw Error(a.scene, "", "no sphere under the tool");
+  if (!contact && driven.empty()) throw Error(a.scene, "", "no sphere under the tool");
 
   // Optional volume term on the filling's tetrahedra (tetrahedral parts only; the model keeps
   // them).
@@ -166,6 +195,33 @@ int run(const Args& a) {
   opt.integrator = a.integrator;
   opt.forces.gravity.setZero();
   Simulation<double> sim(std::move(model), opt);
+  // The contact indenters: frictionless, as a user's instrument (default ContactOptions).
+  collision::ContactSolver<double> contacts(sim.model(), sim.forces());
+  collision::Instrument<double> tool;
+  tool.friction = 0;
+  const double radius = a.load_case == "sphere" ? 5e-3 : 3e-3;
+  const double half_length = 5e-3;  // cylinder: 10 mm long, its flat end on the top at the start
+  if (a.load_case == "sphere")
+    tool.shape = collision::SphereShape<double>{radius};
+  else
+    tool.shape = collision::CylinderShape<double>{radius, half_length};
+  const double start_z = zmax + (a.load_case == "sphere" ? radius : half_length);
+  tool.pose.position = Vector3<double>(cx, cy, start_z);
+  tool.linear_velocity = Vector3<double>(0, 0, -a.speed);
+  const Index tool_index = contact ? contacts.add_instrument(tool) : Index(-1);
+  long softened = 0, inverted_steps = 0, iterations = 0;
+  // How deep any sphere centre got inside the tool over the run (m): the contact must hold the
+  // tissue out (a penalty leaves a small penetration, a fixed share of the deformation).
+  double max_penetration = 0;
+  auto track_clearance = [&] {
+    const auto& ins = contacts.instrument(tool_index);
+    const auto x = sim.model().positions();
+    for (Index i = 0; i < x.rows(); ++i) {
+      const auto c = collision::contact(ins.shape, ins.pose, Vector3<double>(x.row(i).transpose()),
+                                        0.0);
+      if (c) max_penetration = std::max(max_penetration, c->depth);
+    }
+  };
   const double omega_v2 = volume.num_tetrahedra() > 0
                               ? volume.omega_max_squared(sim.model().masses(), sim.model().fixed())
                               : 0.0;
@@ -187,22 +243,14 @@ int run(const Args& a) {
   double step_seconds = 0, volume_seconds = 0;
   Positions<double> link_force(n, 3);
 
-  // Force on the tool: the internal forces on the loaded spheres (links + volume term), in z.
+  // Force on the tool. Bonded: the internal forces (links or elements, and the volume term) on the
+  // loaded spheres, in z. Contact: the z force of the instrument's end-of-step wrench.
   auto tool_force = [&]() {
+    if (contact) return contacts.wrench(tool_index).force.z();
     const auto& m = sim.model();
-    const auto x = m.positions();
-    const auto v = m.velocities();
-    const auto L = m.links();
-    link_force.setZero();
-    for (Index l = 0; l < m.num_links(); ++l) {
-      const Index i = L(l, 0), j = L(l, 1);
-      const Vector3<double> f =
-          m.link(l).force(x.row(i).transpose(), x.row(j).transpose(), v.row(i).transpose(),
-                          v.row(j).transpose(), sim.forces().options().damping);
-      link_force.row(i) += f.transpose();
-      link_force.row(j) -= f.transpose();
-    }
-    if (volume.num_tetrahedra() > 0) volume.add_forces(x, link_force);
+    sim.forces().evaluate(m, m.positions(), m.velocities(), link_force);
+    link_force -= sim.external_forces();  // the volume term's stale copy: recomputed below
+    if (volume.num_tetrahedra() > 0) volume.add_forces(m.positions(), link_force);
     double fz = 0;
     for (Index i : driven) fz += link_force(i, 2);
     return fz;  // the tissue pushes the tool up: positive in compression
@@ -217,6 +265,11 @@ int run(const Args& a) {
     auto x = sim.model().positions();
     for (Index i : driven) x(i, 2) = sim.model().rest_positions()(i, 2) - d;
     const auto t0 = std::chrono::steady_clock::now();
+    if (contact) {  // the tool at the step's start; the contacts move it through the step
+      contacts.instrument(tool_index).pose.position.z() =
+          start_z - a.speed * std::min(t_end, double(s - 1) * dt);
+      contacts.compute(sim.model(), sim.forces());
+    }
     if (volume.num_tetrahedra() > 0) {
       auto fe = sim.external_forces();
       fe.setZero();
@@ -224,7 +277,16 @@ int run(const Args& a) {
     }
     const auto t1 = std::chrono::steady_clock::now();
     const StepReport<double> r = sim.step(dt);
+    if (contact) contacts.collect(sim.forces());
     const auto t2 = std::chrono::steady_clock::now();
+    softened = std::max<long>(softened, r.softened_contacts);
+    if (contact) {
+      // The tool where the step left it (its start plus the step's motion).
+      contacts.instrument(tool_index).pose.position.z() = start_z - a.speed * t;
+      track_clearance();
+    }
+    inverted_steps += r.inverted_elements > 0;
+    iterations += r.solver_iterations;
     volume_seconds += std::chrono::duration<double>(t1 - t0).count();
     step_seconds += std::chrono::duration<double>(t2 - t0).count();
     step_times.push_back(std::chrono::duration<double>(t2 - t0).count());
@@ -264,14 +326,18 @@ int run(const Args& a) {
       "\"mean_step_us\": %.4g, \"median_step_us\": %.4g, \"volume_term_us\": %.4g, \"omega_max\": "
       "%.6g, "
       "\"omega_volume\": %.6g, \"stable_dt\": %s, \"mean_edge_m\": %.6g, "
-      "\"final_force_N\": %s, \"samples\": %zu}\n",
+      "\"final_force_N\": %s, \"samples\": %zu, \"law\": \"%s\", \"nu\": %.4g, "
+      "\"softened_contacts\": %ld, \"inverted_steps\": %ld, \"max_penetration_m\": %s, \"mean_iterations\": %.4g}\n",
       a.scene.c_str(), to_string(tissue.parts[0].topology), a.load_case.c_str(),
       a.integrator.c_str(), dt, sim.model().num_nodes(), sim.model().num_links(), q.tetrahedra,
       sim.model().num_fixed(), driven.size(), a.stiffness_scale, kappa, a.poisson, steps, diverged,
       recovered, finite ? "true" : "false", 1e6 * step_seconds / double(steps), 1e6 * median_step,
       1e6 * volume_seconds / double(steps), sim.spectral_bound().omega_max, std::sqrt(omega_v2),
       json_number(double(sim.stable_time_step())).c_str(), q.mean_edge,
-      json_number(sample_f.back()).c_str(), sample_d.size());
+      json_number(sample_f.back()).c_str(), sample_d.size(), a.law.c_str(),
+      a.law == "continuum" ? a.nu : 0.0, softened, inverted_steps,
+      json_number(contact ? max_penetration : std::nan("")).c_str(),
+      double(iterations) / double(std::max(steps, 1L)));
   return finite && diverged == 0 ? 0 : 3;
 }
 

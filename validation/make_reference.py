@@ -1,20 +1,35 @@
 #!/usr/bin/python3
-"""Regenerates the reference FEM curves in validation/reference/ with CalculiX.
+"""Regenerates the reference FEM curves in validation/reference/ with CalculiX, and their mesh
+convergence study (Richardson extrapolation). See validation/reference/README.md.
 
-    /usr/bin/python3 validation/make_reference.py [--quick]
+    /usr/bin/python3 validation/make_reference.py                 # everything (hours)
+    /usr/bin/python3 validation/make_reference.py --cases compression,punch --nus 0.49 --ns 5,10,15
+    /usr/bin/python3 validation/make_reference.py --analyse       # only redo the extrapolation
 
-Writes, for each load case (compression, punch):
-- reference/<case>_nu<nu>_n<n>.csv: displacement_mm, force_N at 0, 1, ..., 30 s (5 mm/min);
-- reference/convergence.csv: the force at 1.25 and 2.5 mm on each mesh (nu = 0.49).
-The curves used by the validation are those of REF_N (1 mm elements); the other Poisson
-ratios (0.45, 0.47) are run on the middle mesh (NU_N) to keep ccx's time in minutes.
+Load cases: "compression" and "punch" (bonded, displacement-driven tools, fem.write_inp) and
+"sphere" (R 5 mm) and "cylinder" (flat end, R 3 mm), rigid frictionless indenters through
+surface-to-surface penalty contact (fem.write_contact_inp). For each case, Poisson ratio and mesh:
+- reference/<case>_nu<nu>_n<n>.csv: displacement_mm, force_N at every increment (0 included);
+  compression/punch with n <= 10 use 30 increments (31 samples, 1 Hz at 5 mm/min, the format the
+  validation reads), the other runs --increments (default 10: 0.25 mm steps; the converged
+  forces are the same to 6 digits, checked on n = 5);
+- reference/runs.json: per run, wall time, increments, solver, largest contact penetration;
+and per case and Poisson ratio, from the three finest meshes:
+- reference/converged_<case>_nu<nu>.csv: displacement_mm, force_N (Richardson-extrapolated),
+  force_uncertainty_N, displacement_uncertainty_mm (= force uncertainty / local slope dF/dd);
+- reference/convergence.csv (a row per run) and reference/convergence.json (orders, extrapolated
+  values, uncertainties, times).
+ccx runs single-threaded, one at a time, niced.
 """
 
 import argparse
 import csv
+import json
 import os
 import sys
 import time
+
+import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import fem  # noqa: E402
@@ -22,10 +37,16 @@ import fem  # noqa: E402
 HERE = os.path.dirname(os.path.abspath(__file__))
 REF_DIR = os.path.join(HERE, "reference")
 E_NEO = 13150.0  # Pa: the paper's small-strain modulus as the neo-Hookean reference's E
-CONVERGENCE_N = [5, 10, 15]  # elements per 10 mm (quarter model): 2, 1, 0.67 mm
-REF_N = 10  # the curves the validation uses (1 mm elements); 15 checks convergence
-NU_N = 10  # the other Poisson ratios on the middle mesh (ccx time)
-NUS = [0.45, 0.47, 0.49]
+CASES = ["compression", "punch", "sphere", "cylinder"]
+NUS = [0.49, 0.45]
+NS = [5, 10, 15, 20]  # elements per 10 mm (quarter model): 2, 1, 0.67, 0.5 mm (nominal)
+# The contact runs cost about 4x a bonded run of the same mesh (8-10 Newton iterations per
+# increment); their family is n = 5, 7, 10 (graded, see fem.block_mesh) within the time budget.
+NS_CONTACT = [5, 7, 10]
+LEGACY_N = 10  # compression/punch with n <= LEGACY_N: 30 increments (the validation's curves)
+FS = 1.25  # safety factor of the grid convergence index (three meshes, Roache)
+P_RANGE = (0.5, 3.0)  # plausible observed orders; outside: clipped and flagged
+DEPTH_MM = 2.5
 
 
 def curve_path(case, nu, n):
@@ -40,41 +61,259 @@ def write_curve(path, d, F):
             w.writerow([f"{a:.6f}", f"{b:.6g}"])
 
 
+def read_curve(path):
+    with open(path) as f:
+        rows = list(csv.reader(f))[1:]
+    a = np.array([[float(x) for x in r] for r in rows])
+    return a[:, 0], a[:, 1]
+
+
+def load_runs():
+    p = os.path.join(REF_DIR, "runs.json")
+    return json.load(open(p)) if os.path.exists(p) else {}
+
+
+def save_runs(runs):
+    """Merges `runs` into reference/runs.json (several invocations may run one after another)."""
+    merged = load_runs()
+    merged.update(runs)
+    with open(os.path.join(REF_DIR, "runs.json"), "w") as f:
+        json.dump(merged, f, indent=1, sort_keys=True)
+
+
+def run_key(case, nu, n):
+    return f"{case}_nu{nu:g}_n{n}"
+
+
+def run_one(a, case, nu, n):
+    incs = 30 if case in ("compression", "punch") and n <= LEGACY_N else a.increments
+    solver = {"spooles": None, "iterative": "ITERATIVE CHOLESKY"}[a.solver]
+    t0 = time.time()
+    if case in ("compression", "punch"):
+        d, F = fem.run(a.work, case, n, E_NEO, nu, samples=incs, solver=solver, ccx=a.ccx)
+        incs *= fem.run.last_refine
+        pen = pen_rel = None
+    else:
+        d, F, p, k = fem.run_contact(a.work, case, n, E_NEO, nu, samples=incs, solver=solver,
+                                     penalty=a.penalty, ccx=a.ccx)
+        incs *= k
+        pen = float(np.max(p))
+        pen_rel = float(np.max(p[1:] / d[1:]))
+    sec = time.time() - t0
+    return d, F, {"seconds": round(sec, 1), "increments": incs, "solver": a.solver,
+                  "max_penetration_mm": pen, "element_mm": 10.0 / n,
+                  "max_penetration_over_displacement": None if pen is None else pen_rel,
+                  "when": time.strftime("%Y-%m-%d %H:%M")}
+
+
+# ------------------------------------------------------------------------- Richardson analysis
+
+def observed_order(h, f):
+    """Observed order p from three meshes h[0] > h[1] > h[2] (any ratios), values f; None if the
+    convergence is not monotone or no p in (0.05, 10) fits."""
+    e21, e32 = f[1] - f[0], f[2] - f[1]
+    if e21 == 0 or e32 == 0 or np.sign(e21) != np.sign(e32):
+        return None
+    target = e21 / e32
+
+    def g(p):
+        return (h[0] ** p - h[1] ** p) / (h[1] ** p - h[2] ** p)
+
+    lo, hi = 0.05, 10.0
+    if not (g(lo) <= target <= g(hi)):
+        return None
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        if g(mid) < target:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def extrapolate(h, f):
+    """(extrapolated value, uncertainty, observed p or None, method) from three meshes."""
+    p = observed_order(h, f)
+    r = h[1] / h[2]
+    if p is None:
+        # oscillating / diverging: the finest value, +- the difference of the two finest
+        return f[2], abs(f[2] - f[1]), None, "non-monotone: finest mesh +- |F_finest - F_second|"
+    pu = min(max(p, P_RANGE[0]), P_RANGE[1])
+    fe = f[2] + (f[2] - f[1]) / (r ** pu - 1)
+    u = FS * abs(fe - f[2])
+    if pu != p:
+        u = max(u, abs(f[2] - f[1]))
+        return fe, u, p, f"p clipped to {pu:g}; uncertainty max(GCI, |F_finest - F_second|)"
+    return fe, u, p, "Richardson, GCI (Fs = 1.25)"
+
+
+def partial_path(case, nu, n):
+    return os.path.join(REF_DIR, f"{case}_nu{nu:g}_n{n}_partial.csv")
+
+
+def extrapolate2(h, f, p):
+    """Two meshes h[0] > h[1] with an assumed order p (the last one observed on three meshes):
+    (value, uncertainty = max(Fs |F_ext - F_fine|, |F_fine - F_coarse|), p, method)."""
+    r = h[0] / h[1]
+    fe = f[1] + (f[1] - f[0]) / (r ** p - 1)
+    return fe, max(FS * abs(fe - f[1]), abs(f[1] - f[0])), p, \
+        f"two meshes (finest incomplete), p = {p:.3g} assumed; uncertainty max(GCI, |F_fine - F_coarse|)"
+
+
+def analyse(a, runs):
+    """Per case and Poisson ratio, the three finest meshes (a run that stopped early, kept as
+    <case>_nu<nu>_n<n>_partial.csv, counts as the finest where it has samples; past its end the
+    two other meshes are extrapolated with the last observed order)."""
+    summary, conv_rows = {}, []
+    for case in CASES:
+        for nu in NUS:
+            full = [n for n in range(2, 61) if os.path.exists(curve_path(case, nu, n))]
+            for n in full:
+                d, F = read_curve(curve_path(case, nu, n))
+                r = runs.get(run_key(case, nu, n), {})
+                conv_rows.append([case, nu, n, n ** 3, 10.0 / n, np.interp(1.25, d, F),
+                                  np.interp(2.5, d, F), r.get("seconds"), r.get("increments"),
+                                  r.get("max_penetration_mm")])
+            part = [n for n in range(2, 61) if n not in full and n > max(full, default=0)
+                    and os.path.exists(partial_path(case, nu, n))]
+            ns = full + part[-1:]
+            if len(ns) < 3:
+                continue
+            use = ns[-3:]
+            curves = [read_curve(partial_path(case, nu, n) if n in part else curve_path(case, nu, n))
+                      for n in use]
+            h = [10.0 / n for n in use]
+
+            def has(c, x):
+                return np.min(np.abs(c[0] - x)) < 1e-5
+
+            # output grid: the samples of the densest of the three curves that covers 2.5 mm
+            complete = [i for i in range(3) if curves[i][0][-1] > DEPTH_MM - 1e-6]
+            dense = max(complete, key=lambda i: (len(curves[i][0]), use[i]))
+            dd, FF = curves[dense]
+            rows, p_last = [], None
+            for x in dd:
+                if x == 0:
+                    rows.append((0.0, [0.0] * 3, 0.0, 0.0, None, "zero"))
+                    continue
+                if all(has(c, x) for c in curves):
+                    f = [float(np.interp(x, c[0], c[1])) for c in curves]
+                    fe, u, p, how = extrapolate(h, f)
+                    if p is not None:
+                        p_last = min(max(p, P_RANGE[0]), P_RANGE[1])
+                    rows.append((float(x), f, fe, u, p, how))
+                elif x > curves[2][0][-1] + 1e-9 and has(curves[0], x) and has(curves[1], x) \
+                        and p_last is not None:
+                    f = [float(np.interp(x, c[0], c[1])) for c in curves[:2]] + [None]
+                    fe, u, p, how = extrapolate2(h[:2], f[:2], p_last)
+                    rows.append((float(x), f, fe, u, p, how))
+            dc = np.array([r[0] for r in rows])
+            fe = np.array([r[2] for r in rows])
+            ue = np.array([r[3] for r in rows])
+            # between the extrapolated samples: the correction (F_ext - F_dense) and the
+            # uncertainty are interpolated linearly
+            corr = fe - np.interp(dc, dd, FF)
+            F_out = FF + np.interp(dd, dc, corr)
+            U_out = np.interp(dd, dc, ue)
+            slope = np.gradient(F_out, dd)
+            Ud_out = np.where(slope > 0, U_out / np.maximum(slope, 1e-12), np.nan)
+            Ud_out[0] = 0.0
+            with open(os.path.join(REF_DIR, f"converged_{case}_nu{nu:g}.csv"), "w", newline="") as f:
+                w = csv.writer(f)
+                w.writerow(["displacement_mm", "force_N", "force_uncertainty_N",
+                            "displacement_uncertainty_mm"])
+                for x, y, u, ud in zip(dd, F_out, U_out, Ud_out):
+                    w.writerow([f"{x:.6f}", f"{y:.6g}", f"{u:.3g}", f"{ud:.3g}"])
+            slope_c = np.interp(dc, dd, slope)
+            key = f"{case}_nu{nu:g}"
+            summary[key] = {
+                "case": case, "nu": nu, "meshes_n": use, "element_mm": h,
+                "partial_finest": bool(use[-1] in part),
+                "finest_reaches_mm": float(curves[2][0][-1]),
+                "all_meshes_n": ns,
+                "seconds": [runs.get(run_key(case, nu, n), {}).get("seconds") for n in use],
+                "increments": [runs.get(run_key(case, nu, n), {}).get("increments") for n in use],
+                "max_penetration_mm": [runs.get(run_key(case, nu, n), {}).get("max_penetration_mm")
+                                       for n in use],
+                "output_grid_from_n": use[dense],
+                "samples": [{"displacement_mm": r[0], "force_N_per_mesh": r[1],
+                             "observed_order": r[4], "force_extrapolated_N": float(r[2]),
+                             "force_uncertainty_N": float(r[3]),
+                             "displacement_uncertainty_mm": (float(r[3] / s) if s > 0 and r[0] > 0
+                                                             else 0.0),
+                             "method": r[5]} for r, s in zip(rows, slope_c)],
+            }
+            for x in (1.25, 2.5):
+                k = int(np.argmin(np.abs(dc - x)))
+                s_ = summary[key]["samples"][k]
+                summary[key][f"at_{x:g}mm"] = s_
+                print(f"{case} nu={nu:g} n={use}: d={s_['displacement_mm']:.3g} mm "
+                      f"F={s_['force_N_per_mesh']} -> {s_['force_extrapolated_N']:.5g} +- "
+                      f"{s_['force_uncertainty_N']:.2g} N ({s_['displacement_uncertainty_mm']:.3g} mm), "
+                      f"p={s_['observed_order']}, {s_['method']}")
+    with open(os.path.join(REF_DIR, "convergence.csv"), "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["case", "nu", "n", "elements_quarter", "element_mm", "force_1p25mm_N",
+                    "force_2p5mm_N", "seconds", "increments", "max_penetration_mm"])
+        for r in conv_rows:
+            w.writerow([r[0], f"{r[1]:g}", r[2], r[3], f"{r[4]:.4f}", f"{r[5]:.6g}", f"{r[6]:.6g}",
+                        "" if r[7] is None else f"{r[7]:.1f}", "" if r[8] is None else r[8],
+                        "" if r[9] is None else f"{r[9]:.2g}"])
+    with open(os.path.join(REF_DIR, "convergence.json"), "w") as f:
+        json.dump({"E_pa": E_NEO, "safety_factor": FS, "p_range": P_RANGE,
+                   "uncertainty": "GCI = Fs |F_ext - F_finest| (Roache, three meshes); see README",
+                   "studies": summary, "runs": runs}, f, indent=1)
+
+
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--quick", action="store_true", help="only the coarse meshes")
-    ap.add_argument("--keep", action="store_true", help="keep existing Poisson-ratio curves")
+    ap.add_argument("--cases", default=",".join(CASES))
+    ap.add_argument("--nus", default=",".join(f"{x:g}" for x in NUS))
+    ap.add_argument("--ns", default=None, help="meshes (default: 5,10,15,20 for compression "
+                    "and punch, 5,7,10 for the contact cases)")
+    ap.add_argument("--increments", type=int, default=10,
+                    help="fixed increments of the runs other than compression/punch n <= 10")
+    ap.add_argument("--solver", choices=["spooles", "iterative"], default="spooles")
+    ap.add_argument("--penalty", type=float, default=None,
+                    help="contact, MPa/mm (default fem.PENALTY: sphere 50, cylinder 10)")
+    ap.add_argument("--reuse", action="store_true", help="skip runs whose curve file exists")
+    ap.add_argument("--analyse", action="store_true", help="no ccx: only the extrapolation")
+    ap.add_argument("--deadline", type=float, default=0,
+                    help="seconds: start no new run after this much wall time")
+    ap.add_argument("--ccx", default="/usr/bin/ccx")
     ap.add_argument("--work", default=os.path.join(HERE, "..", "build-val", "validation-fem"))
     a = ap.parse_args()
     os.makedirs(REF_DIR, exist_ok=True)
-    ns = CONVERGENCE_N[:2] if a.quick else CONVERGENCE_N
-    rows = []
-    for n in ns:
-        for case in ("compression", "punch"):
-            t0 = time.time()
-            d, F = fem.run(a.work, case, n, E_NEO, 0.49)
-            sec = time.time() - t0
-            write_curve(curve_path(case, 0.49, n), d, F)
-            rows.append([case, n, n ** 3, 10.0 / n, F[15], F[-1], sec])
-            print(f"{case} n={n}: F(1.25 mm) = {F[15]:.4f} N, F(2.5 mm) = {F[-1]:.4f} N, {sec:.0f} s",
-                  flush=True)
-            with open(os.path.join(REF_DIR, "convergence.csv"), "w", newline="") as f:
-                w = csv.writer(f)
-                w.writerow(["case", "n", "elements_quarter", "element_mm", "force_1p25mm_N",
-                            "force_2p5mm_N", "seconds"])
-                for r in rows:
-                    w.writerow([r[0], r[1], r[2], f"{r[3]:.4f}", f"{r[4]:.6g}", f"{r[5]:.6g}",
-                                f"{r[6]:.1f}"])
-    n_nu = NU_N if NU_N in ns else ns[-1]
-    for nu in NUS:
-        if nu == 0.49:
-            continue
-        for case in ("compression", "punch"):
-            if a.keep and os.path.exists(curve_path(case, nu, n_nu)):
-                continue
-            d, F = fem.run(a.work, case, n_nu, E_NEO, nu)
-            write_curve(curve_path(case, nu, n_nu), d, F)
-            print(f"{case} nu={nu} n={n_nu}: F(2.5 mm) = {F[-1]:.4f} N", flush=True)
+    cases = a.cases.split(",")
+    nus = [float(x) for x in a.nus.split(",")]
+    ns_all = [int(x) for x in a.ns.split(",")] if a.ns else sorted(set(NS) | set(NS_CONTACT))
+    runs = load_runs()
+    t_start = time.time()
+    if not a.analyse:
+        for n in ns_all:  # coarse meshes of every case first: a budget cut loses the finest
+            for nu in nus:
+                for case in cases:
+                    if not a.ns and n not in (NS if case in ("compression", "punch") else NS_CONTACT):
+                        continue
+                    if a.reuse and os.path.exists(curve_path(case, nu, n)):
+                        continue
+                    if a.deadline and time.time() - t_start > a.deadline:
+                        print(f"deadline: {case} nu={nu:g} n={n} not run", flush=True)
+                        continue
+                    try:
+                        d, F, info = run_one(a, case, nu, n)
+                    except RuntimeError as e:
+                        print(f"{case} nu={nu:g} n={n}: FAILED {e}", flush=True)
+                        runs[run_key(case, nu, n)] = {"failed": str(e)[:500]}
+                        save_runs({run_key(case, nu, n): runs[run_key(case, nu, n)]})
+                        continue
+                    write_curve(curve_path(case, nu, n), d, F)
+                    runs[run_key(case, nu, n)] = info
+                    save_runs({run_key(case, nu, n): info})
+                    print(f"{case} nu={nu:g} n={n}: F(1.25 mm) = {np.interp(1.25, d, F):.5g} N, "
+                          f"F(2.5 mm) = {F[-1]:.5g} N, {info['seconds']:.0f} s, pen "
+                          f"{info['max_penetration_mm']}", flush=True)
+    analyse(a, load_runs())
 
 
 if __name__ == "__main__":

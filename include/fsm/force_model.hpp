@@ -214,8 +214,20 @@ class ForceModel {
   /// \f$\mathbf{b} = h\mathbf{F} + h^2\,(\partial\mathbf{F}/\partial\mathbf{x})\,\mathbf{v}\f$
   /// and the diagonal of A (for a Jacobi preconditioner); rows of fixed nodes get b = 0, diag = 1.
   /// `form` must be symmetric or definite.
+  /// Contacts: those in the solve take their linear penalty law (exact: the law is linear in the
+  /// positions and velocities where it pushes). Which are in the solve is decided at this state
+  /// (those that penetrate), or, with `keep_contact_set`, kept as update_contact_set() left them.
   void prepare_implicit(const SphereModel<Scalar>& model, Scalar h, JacobianForm form,
-                        Scalar* blocks, PositionsRef rhs, PositionsRef diagonal) noexcept;
+                        Scalar* blocks, PositionsRef rhs, PositionsRef diagonal,
+                        bool keep_contact_set = false) noexcept;
+  /// @brief After a solve of a step of length h from the model's state: puts into the solve
+  /// exactly the contacts that penetrate at the end positions `x_end` (`3|V|`) and returns whether
+  /// that changed the set (the step is then solved again with keep_contact_set, so that the
+  /// contact law applied is the one of the end state: backward Euler on the piecewise-linear
+  /// penalty, which neither pumps energy into a chattering contact nor lets a sphere pass in
+  /// unopposed).
+  bool update_contact_set(const SphereModel<Scalar>& model, const Scalar* x_end,
+                          Scalar h) noexcept;
   /// @brief y = A p for the blocks of prepare_implicit(); rows of fixed nodes are zero.
   void apply_implicit(const SphereModel<Scalar>& model, const Scalar* blocks,
                       const ConstPositionsRef& p, PositionsRef y) noexcept;

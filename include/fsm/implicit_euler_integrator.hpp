@@ -44,6 +44,12 @@ class ImplicitEulerIntegrator final : public Integrator<Scalar> {
     /// CG iteration cap; reaching it is not a failure (the partial solution is used and the
     /// iteration count reported), a breakdown is.
     int max_iterations{200};
+    /// Solves per step when contacts are present: the first with the contacts that penetrate at
+    /// the start, each further one (warm-started) with those that penetrate at the end of the
+    /// previous solve, until the set no longer changes (ForceModel::update_contact_set). 1 keeps
+    /// the start's set (cheaper; a sphere entering the tool then meets it only in the next step,
+    /// and a chattering contact can gain energy).
+    int max_contact_passes{3};
   };
 
   ImplicitEulerIntegrator() = default;
@@ -73,12 +79,15 @@ class ImplicitEulerIntegrator final : public Integrator<Scalar> {
  private:
   IntegratorResult solve_cg(SphereModel<Scalar>& model, ForceModel<Scalar>& forces,
                             Scalar dt) noexcept;
+  // One CG solve of the prepared system into m_dv (warm-started from it).
+  IntegratorResult solve_cg_pass(const SphereModel<Scalar>& model,
+                                 ForceModel<Scalar>& forces) noexcept;
   IntegratorResult solve_assembled(SphereModel<Scalar>& model, ForceModel<Scalar>& forces,
                                    Scalar dt) noexcept;
 
   Options m_options;
   std::vector<Scalar> m_blocks;
-  Positions<Scalar> m_rhs, m_diag, m_dv, m_r, m_z, m_p, m_q;
+  Positions<Scalar> m_rhs, m_diag, m_dv, m_r, m_z, m_p, m_q, m_x_end;
   Scalar m_last_dt{0};
 };
 

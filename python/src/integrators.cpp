@@ -52,9 +52,11 @@ void define_integrators(py::module_& m) {
 solver: "conjugate_gradient" (matrix-free, allocation-free; default), "eigen_ldlt" or "eigen_lu"
 (assembled, exact; eigen_lu uses the exact non-symmetric Jacobian).
 jacobian: "definite" (default), "symmetric" or "exact".
-tolerance: CG relative residual; max_iterations: CG cap.)")
+tolerance: CG relative residual; max_iterations: CG cap per solve.
+max_contact_passes: solves per step while the set of penetrating contacts changes (1: keep the
+start's set).)")
       .def(py::init([](const std::string& solver, const std::string& jacobian, Scalar tolerance,
-                       int max_iterations) {
+                       int max_iterations, int max_contact_passes) {
              typename IE::Options o;
              if (solver == "conjugate_gradient")
                o.solver = IE::Solver::conjugate_gradient;
@@ -74,21 +76,26 @@ tolerance: CG relative residual; max_iterations: CG cap.)")
              else
                throw Error("", "jacobian '" + jacobian + "'",
                            "unknown; valid: definite, symmetric, exact");
-             if (!(tolerance > 0) || max_iterations < 1)
+             if (!(tolerance > 0) || max_iterations < 1 || max_contact_passes < 1)
                throw Error("", "ImplicitEulerIntegrator",
-                           "tolerance and max_iterations must be positive");
+                           "tolerance, max_iterations and max_contact_passes must be positive");
              o.tolerance = tolerance;
              o.max_iterations = max_iterations;
+             o.max_contact_passes = max_contact_passes;
              return IE(o);
            }),
            py::arg("solver") = "conjugate_gradient", py::arg("jacobian") = "definite",
-           py::arg("tolerance") = 1e-6, py::arg("max_iterations") = 200)
+           py::arg("tolerance") = 1e-6, py::arg("max_iterations") = 200,
+           py::arg("max_contact_passes") = 3)
       .def_property_readonly(
           "tolerance", [](const IE& ie) { return ie.options().tolerance; },
           "CG relative residual tolerance")
       .def_property_readonly(
           "max_iterations", [](const IE& ie) { return ie.options().max_iterations; },
-          "CG iteration cap per solve");
+          "CG iteration cap per solve")
+      .def_property_readonly(
+          "max_contact_passes", [](const IE& ie) { return ie.options().max_contact_passes; },
+          "solves per step while the contact set changes");
 
   m.def("integrator_names", &integrator_names, "Names accepted wherever an integrator is chosen.");
   m.def(

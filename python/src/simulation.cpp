@@ -116,6 +116,26 @@ reported, never left as NaN. Raises fsm.Error for a bad model or option.)")
             assign_rows3(sim.external_forces(), v, "external_forces");
           },
           "|V| x 3 external force per node (N), a view; held until changed.")
+      .def(
+          "internal_forces",
+          [](Sim& sim) {
+            const auto& m = sim.model();
+            Positions<Scalar> f(m.num_nodes(), 3);
+            {
+              py::gil_scoped_release release;
+              sim.forces().evaluate(m, m.positions(), m.velocities(), f);
+              f -= sim.external_forces();
+              const Vector3<Scalar> g = sim.forces().options().gravity;
+              for (Index i = 0; i < m.num_nodes(); ++i) f.row(i) -= m.masses()[i] * g.transpose();
+            }
+            py::array_t<Scalar> out({py::ssize_t(f.rows()), py::ssize_t(3)});
+            std::copy(f.data(), f.data() + f.size(), out.mutable_data());
+            return out;
+          },
+          "|V| x 3 forces (N) at the current state from the tissue itself: links or the continuum "
+          "law's elements (elastic and viscous), drag and the penalty contacts the force model "
+          "holds; not gravity or external forces. On a held (fixed) node, what the tissue pushes "
+          "it with: summed over a tool's held nodes, the tool's reaction.")
       .def("set_fixed", &Sim::set_fixed, py::arg("node"), py::arg("fixed") = true,
            "Fixes (or frees) a node; a fixed node's velocity is zeroed and it moves only when its "
            "position is written.")

@@ -14,6 +14,7 @@
 #include <numeric>
 #include <sstream>
 
+#include "fidelity.hpp"
 #include "fsm/builder/fillings.hpp"
 #include "fsm/error.hpp"
 #include "skin_binding.hpp"
@@ -307,10 +308,33 @@ void fill_parts(Build& b) {
     switch (spec.topology) {
       case Topology::tetrahedral: {
         const auto metric = spec.metric ? spec.metric : isotropic_metric(spec.radius);
-        out.tetra = fill_tetrahedral(out.surface, *metric, spec.optimiser, spec.name);
+        // Sharp edges are protected, except on an alpha wrap: it rounds convex edges by its
+        // offset, so its creases are its own facets at alpha, not the organ's edges.
+        out.tetra = fill_tetrahedral(out.surface, *metric, spec.optimiser, spec.name,
+                                     spec.wrap ? 0.0 : kFeatureAngleDeg);
         out.report.quality = out.tetra.quality;
         out.report.metric = metric->describe();
         out.report.optimiser = out.tetra.optimiser;
+        // Geometric fidelity: volume, area, and the area inside the part's fixed boxes and
+        // half-spaces (the scene's only regions defined by geometry).
+        std::vector<FixedSpec> regions;
+        std::vector<std::string> names;
+        for (std::size_t k = 0; k < b.scene.fixed.size(); ++k) {
+          const FixedSpec& f = b.scene.fixed[k];
+          if (f.part != spec.name ||
+              (f.kind != FixedSpec::Kind::box && f.kind != FixedSpec::Kind::plane))
+            continue;
+          regions.push_back(f);
+          names.push_back("fixed region " + std::to_string(k) +
+                          (f.kind == FixedSpec::Kind::box ? " (box)" : " (plane)"));
+        }
+        FidelityReport& fid = out.report.fidelity;
+        fid = detail::measure_fidelity(out.surface, out.tetra.mesh, regions, names);
+        fid.feature_angle_deg = out.tetra.feature_angle_deg;
+        fid.feature_edges = out.tetra.feature_edges;
+        fid.feature_corners = out.tetra.feature_corners;
+        for (std::string& w : detail::fidelity_warnings(fid, spec.radius))
+          out.report.warnings.push_back(std::move(w));
         break;
       }
       case Topology::axis:
@@ -759,6 +783,24 @@ std::string BuildReport::json() const {
                       {"mean_edge_m", p.quality.mean_edge}};
       q["metric"] = p.metric;
       q["optimiser"] = p.optimiser;
+      const FidelityReport& f = p.fidelity;
+      nlohmann::json regions = nlohmann::json::array();
+      for (const RegionFidelity& r : f.regions)
+        regions.push_back({{"region", r.region},
+                           {"input_area_m2", r.input_area},
+                           {"filled_area_m2", r.filled_area},
+                           {"difference", r.difference}});
+      q["fidelity"] = {{"input_volume_m3", f.input_volume},
+                       {"filled_volume_m3", f.filled_volume},
+                       {"volume_difference", f.volume_difference},
+                       {"input_area_m2", f.input_area},
+                       {"filled_area_m2", f.filled_area},
+                       {"area_difference", f.area_difference},
+                       {"regions", regions},
+                       {"tolerance", detail::kFidelityTolerance},
+                       {"feature_angle_deg", f.feature_angle_deg},
+                       {"feature_edges", f.feature_edges},
+                       {"feature_corners", f.feature_corners}};
     }
     for (const auto& m : p.meshes) {
       q["meshes"].push_back({{"file", m.file},

@@ -1,9 +1,12 @@
-// Tetrahedral filling under a metric tensor field: CGAL Mesh_3 Delaunay refinement.
+// Tetrahedral filling under a metric: CGAL Mesh_3 Delaunay refinement, with the surface's sharp
+// edges protected (Mesh_domain_with_polyline_features_3) when it has any.
 
 #include <CGAL/Mesh_complex_3_in_triangulation_3.h>
 #include <CGAL/Mesh_criteria_3.h>
 #include <CGAL/Mesh_triangulation_3.h>
+#include <CGAL/Polygon_mesh_processing/detect_features.h>
 #include <CGAL/Polyhedral_mesh_domain_3.h>
+#include <CGAL/Polyhedral_mesh_domain_with_features_3.h>
 #include <CGAL/Random.h>
 #include <CGAL/make_mesh_3.h>
 
@@ -24,10 +27,21 @@ namespace {
 using K = cgal::Kernel;
 using cgal::SurfaceMesh;
 using cgal::to_cgal;
+
+// A smooth surface: the domain (and so the mesh) of the filling before feature protection.
 using Domain = CGAL::Polyhedral_mesh_domain_3<SurfaceMesh, K>;
 using Tr = CGAL::Mesh_triangulation_3<Domain, CGAL::Default, CGAL::Sequential_tag>::type;
 using C3t3 = CGAL::Mesh_complex_3_in_triangulation_3<Tr>;
 using Criteria = CGAL::Mesh_criteria_3<Tr>;
+
+// A surface with sharp edges: they are detected as polylines, protected by balls of the edge
+// size first, and become edges (their meeting points vertices) of the filling.
+using FeatureDomain = CGAL::Polyhedral_mesh_domain_with_features_3<K, SurfaceMesh>;
+using FeatureTr =
+    CGAL::Mesh_triangulation_3<FeatureDomain, CGAL::Default, CGAL::Sequential_tag>::type;
+using FeatureC3t3 = CGAL::Mesh_complex_3_in_triangulation_3<FeatureTr, FeatureDomain::Corner_index,
+                                                            FeatureDomain::Curve_index>;
+using FeatureCriteria = CGAL::Mesh_criteria_3<FeatureTr>;
 
 // Sizing field of a varying metric: its smallest size at the point (scaled by `factor`).
 struct SizeField {
@@ -35,31 +49,138 @@ struct SizeField {
   double factor;
   using FT = K::FT;
   using Point_3 = K::Point_3;
-  using Index = Domain::Index;
+  template <typename Index>
   FT operator()(const Point_3& p, const int, const Index&) const {
     return factor * metric->size(Eigen::Vector3d(p.x(), p.y(), p.z()));
   }
 };
 
-template <typename... Criteria_args>
-C3t3 run_mesh_3(const Domain& domain, const Criteria& criteria, const std::string& optimiser) {
+template <typename C3, typename D, typename Cr>
+C3 run_mesh_3(const D& domain, const Cr& criteria, const std::string& optimiser) {
   namespace P = CGAL::parameters;
   // Fixed seed: a tetrahedral part builds to the same mesh every time.
   CGAL::get_default_random() = CGAL::Random(0);
   if (optimiser == "none")
-    return CGAL::make_mesh_3<C3t3>(domain, criteria, P::no_perturb(), P::no_exude());
+    return CGAL::make_mesh_3<C3>(domain, criteria, P::no_perturb(), P::no_exude());
   if (optimiser == "perturb")
-    return CGAL::make_mesh_3<C3t3>(domain, criteria, P::perturb(), P::no_exude());
+    return CGAL::make_mesh_3<C3>(domain, criteria, P::perturb(), P::no_exude());
   if (optimiser == "exude")
-    return CGAL::make_mesh_3<C3t3>(domain, criteria, P::no_perturb(), P::exude());
+    return CGAL::make_mesh_3<C3>(domain, criteria, P::no_perturb(), P::exude());
   if (optimiser == "lloyd")
-    return CGAL::make_mesh_3<C3t3>(domain, criteria, P::lloyd(P::max_iteration_number = 20),
-                                   P::no_perturb(), P::exude());
-  if (optimiser == "odt_perturb")
-    return CGAL::make_mesh_3<C3t3>(domain, criteria, P::odt(P::max_iteration_number = 20),
-                                   P::perturb(), P::exude());
-  return CGAL::make_mesh_3<C3t3>(domain, criteria, P::odt(P::max_iteration_number = 20),
+    return CGAL::make_mesh_3<C3>(domain, criteria, P::lloyd(P::max_iteration_number = 20),
                                  P::no_perturb(), P::exude());
+  if (optimiser == "odt_perturb")
+    return CGAL::make_mesh_3<C3>(domain, criteria, P::odt(P::max_iteration_number = 20),
+                                 P::perturb(), P::exude());
+  return CGAL::make_mesh_3<C3>(domain, criteria, P::odt(P::max_iteration_number = 20),
+                               P::no_perturb(), P::exude());
+}
+
+// Meshes `domain` with the builder's criteria (docs/builder.md), in the space where the metric is
+// the identity when it is constant; `edges` adds the edge size of protected features.
+template <typename C3, typename Cr, typename D>
+C3 mesh(const D& domain, const MetricField& metric, const std::string& optimiser, bool edges) {
+  using namespace CGAL::parameters;
+  if (metric.is_constant()) {
+    const Cr criteria = edges
+                            ? Cr(edge_size = 1.0, facet_angle = 25, facet_size = 1.0,
+                                 facet_distance = 0.25, cell_radius_edge_ratio = 2, cell_size = 1.0)
+                            : Cr(facet_angle = 25, facet_size = 1.0, facet_distance = 0.25,
+                                 cell_radius_edge_ratio = 2, cell_size = 1.0);
+    return run_mesh_3<C3>(domain, criteria, optimiser);
+  }
+  const SizeField size{&metric, 1.0}, distance{&metric, 0.25};
+  const Cr criteria =
+      edges ? Cr(edge_size = size, facet_angle = 25, facet_size = size, facet_distance = distance,
+                 cell_radius_edge_ratio = 2, cell_size = size)
+            : Cr(facet_angle = 25, facet_size = size, facet_distance = distance,
+                 cell_radius_edge_ratio = 2, cell_size = size);
+  return run_mesh_3<C3>(domain, criteria, optimiser);
+}
+
+// The cells of a mesh complex as points (mapped back by `from_unit`) and vertex quadruples.
+template <typename C3>
+void cells_of(const C3& c3t3, const Eigen::Matrix3d& from_unit,
+              std::vector<Eigen::Vector3d>& points, std::vector<std::array<Index, 4>>& tets) {
+  std::unordered_map<typename C3::Triangulation::Vertex_handle, Index> id;
+  for (auto c = c3t3.cells_in_complex_begin(); c != c3t3.cells_in_complex_end(); ++c) {
+    std::array<Index, 4> t;
+    for (int k = 0; k < 4; ++k) {
+      const auto v = c->vertex(k);
+      auto [it, inserted] = id.emplace(v, Index(points.size()));
+      if (inserted) {
+        const auto& p = v->point();
+        points.push_back(from_unit * Eigen::Vector3d(CGAL::to_double(p.x()), CGAL::to_double(p.y()),
+                                                     CGAL::to_double(p.z())));
+      }
+      t[std::size_t(k)] = it->second;
+    }
+    tets.push_back(t);
+  }
+}
+
+// The sharp edges of `sm` (the normals of their two faces more than `angle_deg` apart) as
+// polylines: chains of sharp edges between vertices where other than two of them meet, and closed
+// loops (first point repeated last). Chains shorter than the element size `size(x)` at their
+// midpoint (in the space of `sm`) are left out: a crease shorter than one element cannot be an
+// edge of the filling, and protecting it only forces tiny elements around it. `edges` counts the
+// sharp edges kept.
+template <typename Size>
+std::vector<std::vector<K::Point_3>> sharp_polylines(SurfaceMesh& sm, double angle_deg,
+                                                     const Size& size, Index& edges) {
+  using Vertex = SurfaceMesh::Vertex_index;
+  using Edge = SurfaceMesh::Edge_index;
+  auto sharp = sm.add_property_map<Edge, bool>("e:fsm_sharp", false).first;
+  CGAL::Polygon_mesh_processing::detect_sharp_edges(sm, angle_deg, sharp);
+  std::unordered_map<Vertex, std::vector<Vertex>> adj;
+  for (const Edge e : sm.edges())
+    if (sharp[e]) {
+      const Vertex a = sm.vertex(e, 0), b = sm.vertex(e, 1);
+      adj[a].push_back(b);
+      adj[b].push_back(a);
+    }
+  std::vector<std::vector<Vertex>> chains;
+  auto trace = [&](Vertex from, Vertex to) {
+    std::vector<Vertex> c{from};
+    Vertex a = from, b = to;
+    for (;;) {
+      sharp[sm.edge(sm.halfedge(a, b))] = false;  // visited
+      c.push_back(b);
+      const auto& next = adj[b];
+      if (next.size() != 2 || b == from) break;
+      const Vertex n = next[0] == a ? next[1] : next[0];
+      a = b;
+      b = n;
+    }
+    chains.push_back(std::move(c));
+  };
+  // Open chains from their ends first, then what is left: closed loops. Vertices in index order,
+  // so the polylines (and the mesh) do not depend on hashing.
+  std::vector<Vertex> ends;
+  for (const auto& [v, nb] : adj) ends.push_back(v);
+  std::sort(ends.begin(), ends.end());
+  for (const bool loops : {false, true})
+    for (const Vertex v : ends)
+      if (loops == (adj[v].size() == 2))
+        for (const Vertex w : adj[v])
+          if (sharp[sm.edge(sm.halfedge(v, w))]) trace(v, w);
+  sm.remove_property_map(sharp);
+  auto point = [&](Vertex v) {
+    const auto& p = sm.point(v);
+    return Eigen::Vector3d(p.x(), p.y(), p.z());
+  };
+  std::vector<std::vector<K::Point_3>> lines;
+  edges = 0;
+  for (const auto& c : chains) {
+    double length = 0;
+    for (std::size_t i = 1; i < c.size(); ++i) length += (point(c[i]) - point(c[i - 1])).norm();
+    if (length < size(point(c[c.size() / 2]))) continue;
+    std::vector<K::Point_3> line;
+    for (const Vertex v : c) line.push_back(sm.point(v));
+    lines.push_back(std::move(line));
+    edges += Index(c.size() - 1);
+  }
+  return lines;
 }
 
 }  // namespace
@@ -104,47 +225,44 @@ QualityStats measure_quality(const TetrahedralMesh<double>& mesh, const MetricFi
 }
 
 TetraFilling fill_tetrahedral(const TriangleMesh<double>& surface, const MetricField& metric,
-                              const std::string& optimiser, const std::string& part) {
-  using namespace CGAL::parameters;
+                              const std::string& optimiser, const std::string& part,
+                              double feature_angle_deg) {
   TetraFilling out;
   out.optimiser = optimiser.empty() ? "odt" : optimiser;
+  out.feature_angle_deg = feature_angle_deg;
   // Constant metric: work where it is the identity (x' = M^1/2 x) with unit sizes.
   Eigen::Matrix3d to_unit = Eigen::Matrix3d::Identity();
   if (metric.is_constant()) {
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(metric.metric(Eigen::Vector3d::Zero()));
     to_unit = es.operatorSqrt();
   }
-  const SurfaceMesh sm = to_cgal(surface, to_unit);
-  const Domain domain(sm);
-  C3t3 c3t3;
-  if (metric.is_constant()) {
-    const Criteria criteria(facet_angle = 25, facet_size = 1.0, facet_distance = 0.25,
-                            cell_radius_edge_ratio = 2, cell_size = 1.0);
-    c3t3 = run_mesh_3(domain, criteria, out.optimiser);
-  } else {
-    const Criteria criteria(facet_angle = 25, facet_size = SizeField{&metric, 1.0},
-                            facet_distance = SizeField{&metric, 0.25}, cell_radius_edge_ratio = 2,
-                            cell_size = SizeField{&metric, 1.0});
-    c3t3 = run_mesh_3(domain, criteria, out.optimiser);
+  SurfaceMesh sm = to_cgal(surface, to_unit);
+  // Sharp edges, measured where the filling is built (for an isotropic metric, as in space).
+  std::vector<std::vector<K::Point_3>> features;
+  if (feature_angle_deg > 0) {
+    if (metric.is_constant())
+      features = sharp_polylines(
+          sm, feature_angle_deg, [](const Eigen::Vector3d&) { return 1.0; }, out.feature_edges);
+    else
+      features = sharp_polylines(
+          sm, feature_angle_deg, [&](const Eigen::Vector3d& x) { return metric.size(x); },
+          out.feature_edges);
   }
-
   const Eigen::Matrix3d from_unit = to_unit.inverse();
-  std::unordered_map<Tr::Vertex_handle, Index> id;
   std::vector<Eigen::Vector3d> points;
   std::vector<std::array<Index, 4>> tets;
-  for (auto c = c3t3.cells_in_complex_begin(); c != c3t3.cells_in_complex_end(); ++c) {
-    std::array<Index, 4> t;
-    for (int k = 0; k < 4; ++k) {
-      const auto v = c->vertex(k);
-      auto [it, inserted] = id.emplace(v, Index(points.size()));
-      if (inserted) {
-        const auto& p = v->point();
-        points.push_back(from_unit * Eigen::Vector3d(CGAL::to_double(p.x()), CGAL::to_double(p.y()),
-                                                     CGAL::to_double(p.z())));
-      }
-      t[std::size_t(k)] = it->second;
-    }
-    tets.push_back(t);
+  if (features.empty()) {
+    // No sharp edge: exactly the filling without feature protection.
+    const Domain domain(sm);
+    const C3t3 c3t3 = mesh<C3t3, Criteria>(domain, metric, out.optimiser, false);
+    cells_of(c3t3, from_unit, points, tets);
+  } else {
+    FeatureDomain domain(sm);
+    domain.add_features(features.begin(), features.end());
+    const FeatureC3t3 c3t3 =
+        mesh<FeatureC3t3, FeatureCriteria>(domain, metric, out.optimiser, true);
+    out.feature_corners = Index(c3t3.number_of_corners());
+    cells_of(c3t3, from_unit, points, tets);
   }
   if (tets.empty())
     throw Error("", "part '" + part + "'",

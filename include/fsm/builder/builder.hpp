@@ -32,6 +32,27 @@ struct WorkEstimate {
   std::string basis;       ///< How it was estimated, in words ("volume 64 cm^3 at 5 mm").
 };
 
+/// @brief A fixed region's share of a tetrahedral part's surface, against the filling's.
+struct RegionFidelity {
+  std::string region;     ///< "fixed region 0 (box)"
+  double input_area{0};   ///< m^2 of the surface the part was filled from, clipped to the region
+  double filled_area{0};  ///< m^2 of the filling's boundary faces, clipped to the region
+  double difference{0};   ///< filled_area / input_area - 1 (0 when the region holds no surface)
+};
+
+/// @brief How closely a tetrahedral filling follows the surface it was filled from
+/// (docs/builder.md, "Geometric fidelity").
+struct FidelityReport {
+  double input_volume{0}, filled_volume{0};  ///< m^3: the surface's, the tetrahedra's
+  double input_area{0}, filled_area{0};      ///< m^2: the surface's, the filling's boundary
+  double volume_difference{0};               ///< filled_volume / input_volume - 1
+  double area_difference{0};                 ///< filled_area / input_area - 1
+  double feature_angle_deg{0};               ///< sharp-edge angle used (0: no protection)
+  Index feature_edges{0};                    ///< sharp edges of the surface protected
+  Index feature_corners{0};                  ///< filling vertices where protected edges end/meet
+  std::vector<RegionFidelity> regions;       ///< the part's fixed boxes and half-spaces
+};
+
 /// @brief One part's line of the report (the paper's Table 1 and more).
 struct PartReport {
   std::string name;
@@ -39,6 +60,7 @@ struct PartReport {
   double radius{0};  ///< m
   Index spheres{0}, links{0};
   QualityStats quality;  ///< Tetrahedral parts only.
+  FidelityReport fidelity;  ///< Tetrahedral parts only.
   Index surface_vertices{0}, surface_faces{0};
   double volume{0};   ///< m^3 of the surface the part was filled from
   double mass{0};     ///< kg

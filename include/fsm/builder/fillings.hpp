@@ -21,24 +21,37 @@
 
 namespace fsm::build {
 
+/// @brief The default sharp-edge angle of the tetrahedral filling (degrees between face normals).
+inline constexpr double kFeatureAngleDeg = 60;
+
 /// @brief A tetrahedral filling of a closed surface under a metric, and its quality.
 struct TetraFilling {
   TetrahedralMesh<double> mesh;  ///< vertices `|V| x 3` (m), tetrahedra `|T| x 4`, positive volume
   QualityStats quality;          ///< Q(K) measured in the metric
   std::string optimiser;         ///< the one actually used
+  double feature_angle_deg{0};   ///< an edge is sharp when its face normals differ by more
+  Index feature_edges{0};        ///< sharp edges of the surface protected in the filling
+  Index feature_corners{0};      ///< vertices of the filling where protected chains end or meet
 };
 
 /// @brief Mesh_3 Delaunay refinement under `metric`: constant metrics exactly (map by M^1/2, fill
 /// with unit size, map back), varying metrics by their smallest size. Criteria in the unit space:
 /// cell circumradius <= 1, surface Delaunay balls <= 1, surface distance <= 1/4, facet angle >= 25
 /// degrees, radius-edge ratio <= 2. Seeded: the same input gives the same mesh.
+/// Sharp edges (the normals of their two faces more than `feature_angle_deg` apart, measured where
+/// the metric is the identity), in chains at least one element size long, are protected with edge
+/// size 1 in that space: they become edges of the filling, their ends and meeting points (a box's
+/// corners) vertices. A surface without such chains is filled exactly as without protection.
 /// @param surface a closed, outward-oriented surface (m).
 /// @param optimiser "odt", "odt_perturb", "lloyd", "perturb", "exude", "none", or "" for the
 /// default (odt).
 /// @param part the part's name, for messages.
+/// @param feature_angle_deg the sharp-edge angle (default 60, CGAL's: a dihedral angle below 120
+/// degrees); 0 protects nothing (the builder's choice for an alpha-wrapped surface).
 /// @throws fsm::Error naming the part: meshing failed or produced no tetrahedra.
 TetraFilling fill_tetrahedral(const TriangleMesh<double>& surface, const MetricField& metric,
-                              const std::string& optimiser, const std::string& part);
+                              const std::string& optimiser, const std::string& part,
+                              double feature_angle_deg = kFeatureAngleDeg);
 
 /// @brief Quality statistics of a tetrahedral mesh in a metric (for reports and baselines).
 QualityStats measure_quality(const TetrahedralMesh<double>& mesh, const MetricField& metric);

@@ -4,7 +4,7 @@
 // elasticity on the tetrahedra of the regions that use ForceLaw::continuum,
 //
 //   E = sum_T V_T W_dev(F_T) + sum_a V_a U(J_a),
-//   W_dev = C10 (I1 g(J) - 3)             (g = J^-2/3, extended below J_min; bilinear in I1bar),
+//   W_dev = C10 (I1 g(J) - 3)             (g = J^-2/3, extended below J_min; bilinear: below),
 //   U(J) = (K / 2) (J - 1)^2,             J_a = v_a / V_a, v_a = sum_{T at a} v_T / 4,
 //
 // (CalculiX's NEO HOOKE with C10 = mu / 2 and D1 = 2 / K: the deviatoric part per element, the
@@ -62,23 +62,32 @@ inline Matrix3<Scalar> cofactor(const Matrix3<Scalar>& F) noexcept {
 
 /// Deviatoric energy density and its first Piola-Kirchhoff stress for one element.
 /// c10: C10 (Pa); c10_large: C10 beyond the switch (0 = linear); q_switch: I1bar - 3 at the
-/// switch.
+/// switch. The bilinear pair as the link law has it (force continuous, stiffness E then E_L):
+/// with s = sqrt(q / 3), about the uniaxial strain (q ~ 3 eps^2),
+///   W = C10 q + 3 (C10_L - C10) (s - s_switch)^2   beyond the switch,
+/// whose stress is continuous and whose uniaxial stiffness goes from E to E_L at the switch.
+/// `stiffening` gets the ratio of the incremental stiffness to the small-strain one (C10_L / C10
+/// beyond the switch, else 1), for the implicit tangent.
 template <typename Scalar>
 inline Scalar deviatoric(const Matrix3<Scalar>& F, Scalar c10, Scalar c10_large, Scalar q_switch,
-                         Scalar j_min, Matrix3<Scalar>* P) noexcept {
+                         Scalar j_min, Matrix3<Scalar>* P,
+                         Scalar* stiffening = nullptr) noexcept {
   const Matrix3<Scalar> cof = cofactor(F);
   const Scalar J = F.col(0).dot(cof.col(0));
   const Scalar I1 = F.squaredNorm();
   Scalar g, dg;
   volume_factor(J, j_min, g, dg);
   const Scalar q = I1 * g - Scalar(3);
-  Scalar W, slope;
+  Scalar W, slope;  // slope = dW/dq
   if (c10_large > Scalar(0) && q > q_switch) {
-    W = c10 * q_switch + c10_large * (q - q_switch);
-    slope = c10_large;
+    const Scalar s = std::sqrt(q / Scalar(3)), ss = std::sqrt(q_switch / Scalar(3));
+    W = c10 * q + Scalar(3) * (c10_large - c10) * (s - ss) * (s - ss);
+    slope = c10 + (c10_large - c10) * (Scalar(1) - ss / s);
+    if (stiffening) *stiffening = c10_large / c10;
   } else {
     W = c10 * q;
     slope = c10;
+    if (stiffening) *stiffening = Scalar(1);
   }
   // d(I1 g)/dF = 2 g F + I1 g' dJ/dF, dJ/dF = cof(F).
   if (P) *P = slope * (Scalar(2) * g * F + I1 * dg * cof);
@@ -89,8 +98,28 @@ inline Scalar deviatoric(const Matrix3<Scalar>& F, Scalar c10, Scalar c10_large,
 template <typename Scalar>
 class ContinuumTerm {
  public:
+  /// The implicit tangent's edge springs are this many times the network whose shear modulus is
+  /// mu (their damping is exact). The springs approximate the deviatoric Hessian, which is stiffer
+  /// than them in some modes (under large strain, near a stiff contact); the linearised step of a
+  /// mode of true stiffness k with tangent k_t is stable only while h^2 k / m < 4 + 2 h^2 k_t / m,
+  /// so a tangent at least half the true stiffness keeps every step stable. Measured: a 5 mm ball
+  /// pressed 1 mm into a 1 mm lattice diverges at h = 2 ms with a margin of 1 and is stable to
+  /// 5 ms with 2 (docs/physics.md section 11). The equilibrium does not depend on it: the forces are
+  /// exact.
+  static constexpr Scalar tangent_margin = Scalar(2);
   /// Below this volume ratio an element's deviatoric energy uses the extension of J^{-2/3}.
   static constexpr double j_min = 0.2;
+
+  /// The edge spring of the tangent (before tangent_margin): the network whose shear modulus is
+  /// mu, each element's share stiffened as its material is at the last add_forces() state.
+  [[nodiscard]] Scalar edge_stiffness(std::size_t e) const noexcept {
+    if (!m_any_bilinear) return m_edge_k[e];
+    Scalar k(0);
+    for (Index s = m_edge_part_start[e]; s < m_edge_part_start[e + 1]; ++s)
+      k += m_stiffening[std::size_t(m_edge_part_element[std::size_t(s)])] *
+           m_edge_part_k[std::size_t(s)];
+    return k;
+  }
 
   /// Rebuilds everything from the model's continuum regions (allocates; not real-time).
   void refresh(const SphereModel<Scalar>& model) {
@@ -108,7 +137,9 @@ class ContinuumTerm {
     const auto x = model.rest_positions();
     const auto tets = model.tetrahedra();
     const auto region = model.node_regions();
-    std::vector<std::tuple<Index, Index, Scalar, Index>> edges;  // (i, j, V / l^2, region)
+    // (i, j, V / l^2, region, element)
+    std::vector<std::tuple<Index, Index, Scalar, Index, Index>> edges;
+    m_any_bilinear = false;
     for (Index t = 0; t < model.num_tetrahedra(); ++t) {
       const Index r = region[tets(t, 0)];
       const Region<Scalar>& reg = model.region(r);
@@ -123,8 +154,10 @@ class ContinuumTerm {
       m_volume.push_back(V);
       const Scalar mu = mat.shear_modulus();
       m_c10.push_back(mu / Scalar(2));
+      const Index element = Index(m_volume.size()) - 1;
       if (mat.is_bilinear()) {
-        // The bilinear pair as a stiffening of the deviatoric energy: C10 becomes E_L / E times
+        m_any_bilinear = true;
+        // The bilinear pair as a stiffening of the deviatoric energy (deviatoric()): E_L / E times
         // larger where I1bar - 3 passes its value in uniaxial stretch at the switch strain.
         const Scalar s = Scalar(1) + mat.switch_strain;
         m_c10_large.push_back(mu / Scalar(2) * mat.large_strain_modulus / mat.youngs_modulus);
@@ -144,7 +177,7 @@ class ContinuumTerm {
           Index p = tets(t, a), q = tets(t, b);
           if (p > q) std::swap(p, q);
           const Scalar l2 = (x.row(q) - x.row(p)).squaredNorm();
-          edges.emplace_back(p, q, V / l2, r);
+          edges.emplace_back(p, q, V / l2, r, element);
         }
     }
     std::sort(edges.begin(), edges.end(), [](const auto& u, const auto& w) {
@@ -153,12 +186,21 @@ class ContinuumTerm {
     m_edges.clear();
     m_edge_k.clear();
     m_edge_tau.clear();
+    m_edge_part_start.assign(1, 0);
+    m_edge_part_element.clear();
+    m_edge_part_k.clear();
     for (std::size_t k = 0; k < edges.size();) {
-      const auto [p, q, w0, r] = edges[k];
+      const auto [p, q, w0, r, t0] = edges[k];
+      const Material<Scalar>& pm = model.region(r).material;
       Scalar w(0);
-      for (; k < edges.size() && std::get<0>(edges[k]) == p && std::get<1>(edges[k]) == q; ++k)
+      for (; k < edges.size() && std::get<0>(edges[k]) == p && std::get<1>(edges[k]) == q; ++k) {
         w += std::get<2>(edges[k]);
+        m_edge_part_element.push_back(std::get<4>(edges[k]));
+        m_edge_part_k.push_back(Scalar(2.5) * pm.shear_modulus() * std::get<2>(edges[k]));
+      }
+      m_edge_part_start.push_back(Index(m_edge_part_element.size()));
       (void)w0;
+      (void)t0;
       const Material<Scalar>& mat = model.region(r).material;
       m_edges.push_back(p);
       m_edges.push_back(q);
@@ -166,6 +208,7 @@ class ContinuumTerm {
       m_edge_tau.push_back(mat.retardation_time());
     }
     const std::size_t nt = m_volume.size();
+    m_stiffening.assign(nt, Scalar(1));
     m_grad.assign(12 * nt, Scalar(0));
     m_edge_block.assign(4 * num_edges(), Scalar(0));
     m_node_coefficient.assign(std::size_t(n), Scalar(0));
@@ -203,7 +246,7 @@ class ContinuumTerm {
         for (int c = 0; c < 3; ++c) m_grad[12 * t + 3 * std::size_t(k) + std::size_t(c)] = g[k][c];
       const Matrix3<Scalar> F = Ds * dm_inv(t);
       Matrix3<Scalar> P;
-      deviatoric(F, m_c10[t], m_c10_large[t], m_q_switch[t], Scalar(j_min), &P);
+      deviatoric(F, m_c10[t], m_c10_large[t], m_q_switch[t], Scalar(j_min), &P, &m_stiffening[t]);
       const Matrix3<Scalar> H = -m_volume[t] * P * dm_inv(t).transpose();
       Vector3<Scalar> f0 = Vector3<Scalar>::Zero();
       for (int k = 0; k < 3; ++k) {
@@ -310,9 +353,10 @@ class ContinuumTerm {
       B[0] = n[0];
       B[1] = n[1];
       B[2] = n[2];
-      B[3] = (h2 + h * m_edge_tau[e]) * m_edge_k[e];
+      const Scalar k = tangent_margin * edge_stiffness(e);
+      B[3] = h2 * k + h * m_edge_tau[e] * m_edge_k[e];
       // rhs: the stiffness part only (damping is in the forces): -h^2 k n n^T (v_i - v_j) on i.
-      const Vector3<Scalar> r = h2 * m_edge_k[e] * n.dot(row(v, j) - row(v, i)) * n;
+      const Vector3<Scalar> r = h2 * k * n.dot(row(v, j) - row(v, i)) * n;
       add(rhs, i, r);
       add(rhs, j, -r);
       for (int c = 0; c < 3; ++c) {
@@ -371,8 +415,15 @@ class ContinuumTerm {
     if (empty()) return;
     const auto x = model.rest_positions();
     for (std::size_t e = 0; e < num_edges(); ++e) {
-      k[m_edges[2 * e]] += Scalar(2) * m_edge_k[e];
-      k[m_edges[2 * e + 1]] += Scalar(2) * m_edge_k[e];
+      // At its stiffest: each element's share at its large-strain C10 (bilinear materials), as
+      // the link law takes the larger of its two stiffnesses.
+      Scalar ke(0);
+      for (Index s = m_edge_part_start[e]; s < m_edge_part_start[e + 1]; ++s) {
+        const auto t = std::size_t(m_edge_part_element[std::size_t(s)]);
+        ke += std::max(Scalar(1), m_c10_large[t] / m_c10[t]) * m_edge_part_k[std::size_t(s)];
+      }
+      k[m_edges[2 * e]] += Scalar(2) * ke;
+      k[m_edges[2 * e + 1]] += Scalar(2) * ke;
     }
     // Volumetric: row sum of sum_a (K / V_a) |grad_i v_a| |grad_j v_a| over j.
     std::vector<Scalar> ring(std::size_t(m_num_nodes), Scalar(0));
@@ -411,7 +462,7 @@ class ContinuumTerm {
       const Vector3<Scalar> d = row(x, j) - row(x, i);
       const Scalar l = d.norm();
       if (!(l > Scalar(0))) continue;
-      const Matrix3<Scalar> K = m_edge_k[e] * (d / l) * (d / l).transpose();
+      const Matrix3<Scalar> K = tangent_margin * edge_stiffness(e) * (d / l) * (d / l).transpose();
       push_pair(trip, i, j, K);
     }
     // sum_a (K / V_a) grad v_a grad v_a^T, grad v_a = sum_{T at a} grad v_T / 4.
@@ -582,6 +633,13 @@ class ContinuumTerm {
   std::vector<Scalar> m_node_volume, m_node_bulk, m_node_tau;  // per node
   std::vector<Index> m_edges;      // 2 per edge
   std::vector<Scalar> m_edge_k, m_edge_tau;  // per edge (N/m, s)
+  // Each edge's spring as the sum of its elements' shares (CSR), so that an element past a
+  // bilinear material's switch stiffens the tangent of its edges (m_stiffening, set by
+  // add_forces()): a tangent far softer than the forces would make the step unstable.
+  std::vector<Index> m_edge_part_start, m_edge_part_element;
+  std::vector<Scalar> m_edge_part_k;
+  std::vector<Scalar> m_stiffening;  // per element: its current C10 over its small-strain C10
+  bool m_any_bilinear{false};
   // Per-step scratch (sized by refresh).
   std::vector<Scalar> m_grad;              // 12 per element: volume gradients at the step's x
   std::vector<Scalar> m_edge_block;        // 4 per edge: n and (h^2 + h tau) k

@@ -492,9 +492,27 @@ Scalar ForceModel<Scalar>::gravity_energy(const SphereModel<Scalar>& model,
 }
 
 template <typename Scalar>
+bool ForceModel<Scalar>::update_contact_set(const SphereModel<Scalar>& model,
+                                            const Scalar* x_end, Scalar h) noexcept {
+  bool changed = false;
+  for (Index k = 0; k < m_num_contacts; ++k) {
+    PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
+    if (m_immobile[std::size_t(c.node)] && (c.other < 0 || m_immobile[std::size_t(c.other)]))
+      continue;
+    const bool in =
+        detail::contact_depth(c, x_end, detail::surface_advance(c, m_contact_time + h)) >
+        Scalar(0);
+    changed = changed || in != c.in_solve;
+    c.in_solve = in;
+  }
+  (void)model;
+  return changed;
+}
+
+template <typename Scalar>
 void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scalar h,
                                           JacobianForm form, Scalar* blocks, PositionsRef rhs,
-                                          PositionsRef diagonal) noexcept {
+                                          PositionsRef diagonal, bool keep_contact_set) noexcept {
   const detail::LinkData<Scalar> L(model);
   const Scalar* mass = model.masses().data();
   const Scalar* ext = m_external.data();
@@ -571,15 +589,15 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
   }
   // Contacts: h F + h^2 dF/dx v (with the instrument's motion over the step) into the rhs, and
   // the blocks B = (h^2 k + h c) n n^T + h c_t (I - n n^T) of those that push at the start.
-  // A contact that penetrates at the start takes its linear law (unclamped) for the whole step.
+  // A contact in the solve takes its linear law (unclamped) for the whole step.
   m_contacts_linearised = true;
   for (Index k = 0; k < m_num_contacts; ++k) {
     PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
     Scalar fn;
     Vector3<Scalar> slip, d, u;
     const Scalar adv = detail::surface_advance(c, m_contact_time);
-    const bool active = detail::contact_depth(c, x, adv) > Scalar(0);
-    c.in_solve = active;
+    if (!keep_contact_set) c.in_solve = detail::contact_depth(c, x, adv) > Scalar(0);
+    const bool active = c.in_solve;
     const Vector3<Scalar> F = detail::contact_force(c, x, v, adv, fn, slip, false);
     detail::contact_kinematics(c, x, v, d, u);
     c.normal_block = active ? h2 * c.stiffness + h * c.damping : Scalar(0);

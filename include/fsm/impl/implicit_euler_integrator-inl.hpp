@@ -12,7 +12,8 @@ void ImplicitEulerIntegrator<Scalar>::prepare(const SphereModel<Scalar>& model) 
   m_blocks.assign(
       std::size_t(ForceModel<Scalar>::implicit_block_size) * std::size_t(model.num_links()),
       Scalar(0));
-  for (Positions<Scalar>* w : {&m_rhs, &m_diag, &m_dv, &m_r, &m_z, &m_p, &m_q}) w->setZero(n, 3);
+  for (Positions<Scalar>* w : {&m_rhs, &m_diag, &m_dv, &m_r, &m_z, &m_p, &m_q, &m_x_end})
+    w->setZero(n, 3);
   m_last_dt = Scalar(0);
 }
 
@@ -34,7 +35,6 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg(SphereModel<Scalar>& 
                                                            Scalar dt) noexcept {
   const JacobianForm form =
       m_options.jacobian == JacobianForm::exact ? JacobianForm::symmetric : m_options.jacobian;
-  forces.prepare_implicit(model, dt, form, m_blocks.data(), m_rhs, m_diag);
   const auto& fixed = forces.immobile();  // fixed or asleep
   const Index n = model.num_nodes();
 
@@ -44,6 +44,29 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg(SphereModel<Scalar>& 
     if (fixed[std::size_t(i)]) m_dv.row(i).setZero();
   if (!m_dv.allFinite()) m_dv.setZero();
 
+  // Contacts: solve with those penetrating at the start, then again (warm-started) with those
+  // penetrating at the end while that set changes, at most max_contact_passes solves.
+  int total = 0;
+  for (int pass = 0;; ++pass) {
+    forces.prepare_implicit(model, dt, form, m_blocks.data(), m_rhs, m_diag, pass > 0);
+    const IntegratorResult r = solve_cg_pass(model, forces);
+    total += r.iterations;
+    if (!r.ok) return {false, total};
+    if (forces.num_contacts() == 0 || pass + 1 >= m_options.max_contact_passes) break;
+    m_x_end = model.positions() + dt * (model.velocities() + m_dv);
+    if (!forces.update_contact_set(model, m_x_end.data(), dt)) break;
+  }
+  m_last_dt = dt;
+  auto x = model.positions();
+  auto v = model.velocities();
+  v += m_dv;
+  x += dt * v;
+  return {true, total};
+}
+
+template <typename Scalar>
+IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg_pass(const SphereModel<Scalar>& model,
+                                                                ForceModel<Scalar>& forces) noexcept {
   const Scalar bnorm = m_rhs.norm();
   if (!std::isfinite(bnorm)) {  // NaN or infinite forces: no solution to apply
     reset();
@@ -80,11 +103,6 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg(SphereModel<Scalar>& 
     reset();
     return {false, it};
   }
-  m_last_dt = dt;
-  auto x = model.positions();
-  auto v = model.velocities();
-  v += m_dv;
-  x += dt * v;
   return {true, it};
 }
 
