@@ -499,6 +499,7 @@ bool ForceModel<Scalar>::update_contact_set(const SphereModel<Scalar>& model,
     PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
     if (m_immobile[std::size_t(c.node)] && (c.other < 0 || m_immobile[std::size_t(c.other)]))
       continue;
+    if (c.other >= 0) continue;  // part contacts keep the start's set (see the header)
     const bool in =
         detail::contact_depth(c, x_end, detail::surface_advance(c, m_contact_time + h)) >
         Scalar(0);

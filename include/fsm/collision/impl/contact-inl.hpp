@@ -15,11 +15,14 @@ ContactSolver<Scalar>::ContactSolver(const SphereModel<Scalar>& model,
                                      const ContactOptions<Scalar>& options)
     : m_options(options) {
   const auto& o = m_options;
-  if (!(o.stiffness_ratio > 0) || !std::isfinite(o.stiffness_ratio) || !(o.damping_ratio >= 0) ||
+  if (!(o.stiffness_ratio > 0) || !std::isfinite(o.stiffness_ratio) ||
+      !(o.part_stiffness_ratio > 0) || !std::isfinite(o.part_stiffness_ratio) ||
+      !(o.damping_ratio >= 0) ||
       !std::isfinite(o.damping_ratio) || !(o.friction_speed > 0) || !(o.part_friction >= 0) ||
       o.max_contacts < 1 || !(o.verlet_skin >= 0) || !std::isfinite(o.verlet_skin))
     throw Error("", "contact options",
-                "stiffness_ratio and friction_speed must be positive, damping_ratio and "
+                "stiffness_ratio, part_stiffness_ratio and friction_speed must be positive, "
+                "damping_ratio and "
                 "part_friction non-negative, verlet_skin finite and non-negative, max_contacts "
                 "at least 1");
   refresh(model);
@@ -393,7 +396,8 @@ void ContactSolver<Scalar>::part_contact(const SphereModel<Scalar>& model, Index
   pc.normal = n;
   pc.depth = depth;
   pc.point = x.row(i).transpose() + (radius[i] - Scalar(0.5) * depth) * n;
-  pc.stiffness = std::min(m_k[std::size_t(i)], m_k[std::size_t(j)]);
+  pc.stiffness = std::min(m_k[std::size_t(i)], m_k[std::size_t(j)]) *
+                 (m_options.part_stiffness_ratio / m_options.stiffness_ratio);
   const Scalar mu = mass[i] * mass[j] / (mass[i] + mass[j]);
   pc.damping = Scalar(2) * m_options.damping_ratio * std::sqrt(pc.stiffness * mu);
   pc.friction = m_options.part_friction;
