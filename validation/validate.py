@@ -272,9 +272,17 @@ def charts(R, res):
         conv = list(csv.DictReader(open(os.path.join(REF_DIR, "convergence.csv"))))
         fig, axes = plt.subplots(1, 2, figsize=(9, 3.6))
         for ax, case in zip(axes, ("compression", "punch")):
-            for row in [c for c in conv if c["case"] == case]:
+            for row in [c for c in conv if c["case"] == case and float(c["nu"]) == 0.49]:
+                path = os.path.join(REF_DIR, f"{case}_nu0.49_n{int(row['n'])}.csv")
+                if not os.path.exists(path):  # a run that did not finish (reference/README.md)
+                    continue
                 d, F = reference(case, 0.49, int(row["n"]))
                 ax.plot(d, F, label=f"{float(row['element_mm']):.2f} mm elements")
+            conv_path = os.path.join(REF_DIR, f"converged_{case}_nu0.49.csv")
+            if os.path.exists(conv_path):
+                rows = list(csv.DictReader(open(conv_path)))
+                ax.plot([float(r["displacement_mm"]) for r in rows],
+                        [float(r["force_N"]) for r in rows], "k--", label="extrapolated")
             ax.set_title(f"reference {case}: mesh convergence")
             ax.set_xlabel("displacement (mm)")
             ax.set_ylabel("force (N)")
