@@ -332,7 +332,8 @@ TEST(ContactSolver, BuriedLightPartSettlesImplicitlyAndIsCappedExplicitly) {
       solver.collect(sim.forces());
       ok = r.advanced() && sim.model().positions().allFinite();
       softened = std::max(softened, r.softened_contacts);
-      if (s >= steps * 9 / 10) late_speed = std::max(late_speed, sim.model().velocities().row(b).norm());
+      if (s >= steps * 9 / 10)
+        late_speed = std::max(late_speed, sim.model().velocities().row(b).norm());
     }
     return std::make_tuple(ok, late_speed, softened);
   };
@@ -387,8 +388,8 @@ TEST(ContactSolver, BallForceConvergesAsTheSpacingShrinks) {
       ASSERT_EQ(rep.status, StepStatus::ok) << "step " << s;
       tool.pose.position.z() = H + R - D * std::min(1.0, double(s + 1) / load);
       for (Index i = 0; i < sim.model().num_nodes(); ++i)
-        deepest = std::max(deepest, R - (sim.model().positions().row(i).transpose() -
-                                         tool.pose.position).norm());
+        deepest = std::max(
+            deepest, R - (sim.model().positions().row(i).transpose() - tool.pose.position).norm());
     }
     EXPECT_LT(deepest, 0.01 * D);
     Vector3<double> sum = Vector3<double>::Zero();

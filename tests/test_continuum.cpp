@@ -202,7 +202,8 @@ TEST(Continuum, ForcesBalanceAndRigidMotionIsFree) {
   const M3 R = Eigen::AngleAxisd(0.7, V3(1, 2, 3).normalized()).toRotationMatrix();
   const V3 w = 3 * V3(1, 2, 3).normalized();
   Positions<double> x = affine(m, R), v(m.num_nodes(), 3);
-  for (Index i = 0; i < m.num_nodes(); ++i) v.row(i) = w.cross(V3(x.row(i).transpose())).transpose();
+  for (Index i = 0; i < m.num_nodes(); ++i)
+    v.row(i) = w.cross(V3(x.row(i).transpose())).transpose();
   f.evaluate(m, x, v, g);
   EXPECT_LT(g.cwiseAbs().maxCoeff(), 1e-9 * scale);
 }

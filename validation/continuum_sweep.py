@@ -13,7 +13,6 @@ Writes validation/results/continuum_sweep.json and two charts in docs/img: error
 (log-log, with the observed order) and median step time against error.
 """
 import argparse
-import csv
 import json
 import os
 import subprocess
@@ -26,13 +25,6 @@ ROOT = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
 import scenes  # noqa: E402
 import validate  # noqa: E402
-
-
-def converged(case):
-    with open(os.path.join(HERE, "reference", f"converged_{case}_nu0.49.csv")) as f:
-        rows = list(csv.DictReader(f))
-    return (np.array([float(r["displacement_mm"]) for r in rows]),
-            np.array([float(r["force_N"]) for r in rows]))
 
 
 def main():
@@ -57,7 +49,7 @@ def main():
                     sys.exit(f"fsm-indent failed: {p.stderr}")
                 s = json.loads(p.stdout)
                 d, F = validate.read_curve(out)
-                dr, Fr = converged(case)
+                dr, Fr = validate.converged_reference(case)
                 m = validate.metrics(d, F, dr, Fr)
                 mask = (d >= 0.5 - 1e-9) & (d <= 2.5 + 1e-9)
                 rel = np.max(np.abs(F[mask] - np.interp(d[mask], dr, Fr)) / np.interp(d[mask], dr, Fr))

@@ -12,7 +12,6 @@ compression with the paper's link network (2.5x too soft) and fails unless the t
 it, so the check cannot silently lose its teeth.
 """
 import argparse
-import csv
 import json
 import os
 import subprocess
@@ -24,13 +23,6 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 import scenes  # noqa: E402
 import validate  # noqa: E402
-
-
-def converged(case, nu=0.49):
-    with open(os.path.join(HERE, "reference", f"converged_{case}_nu{nu:g}.csv")) as f:
-        rows = list(csv.DictReader(f))
-    return (np.array([float(r["displacement_mm"]) for r in rows]),
-            np.array([float(r["force_N"]) for r in rows]))
 
 
 def main():
@@ -53,7 +45,7 @@ def main():
             sys.exit(f"fsm-indent failed ({r.returncode}): {r.stderr}")
         summary = json.loads(r.stdout)
         d, F = validate.read_curve(out)
-        dr, Fr = converged(case)
+        dr, Fr = validate.converged_reference(case)
         return validate.metrics(d, F, dr, Fr), summary
 
     failures = []

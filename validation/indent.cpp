@@ -217,8 +217,8 @@ int run(const Args& a) {
     const auto& ins = contacts.instrument(tool_index);
     const auto x = sim.model().positions();
     for (Index i = 0; i < x.rows(); ++i) {
-      const auto c = collision::contact(ins.shape, ins.pose, Vector3<double>(x.row(i).transpose()),
-                                        0.0);
+      const auto c =
+          collision::contact(ins.shape, ins.pose, Vector3<double>(x.row(i).transpose()), 0.0);
       if (c) max_penetration = std::max(max_penetration, c->depth);
     }
   };
@@ -327,7 +327,8 @@ int run(const Args& a) {
       "%.6g, "
       "\"omega_volume\": %.6g, \"stable_dt\": %s, \"mean_edge_m\": %.6g, "
       "\"final_force_N\": %s, \"samples\": %zu, \"law\": \"%s\", \"nu\": %.4g, "
-      "\"softened_contacts\": %ld, \"inverted_steps\": %ld, \"max_penetration_m\": %s, \"mean_iterations\": %.4g}\n",
+      "\"softened_contacts\": %ld, \"inverted_steps\": %ld, \"max_penetration_m\": %s, "
+      "\"mean_iterations\": %.4g}\n",
       a.scene.c_str(), to_string(tissue.parts[0].topology), a.load_case.c_str(),
       a.integrator.c_str(), dt, sim.model().num_nodes(), sim.model().num_links(), q.tetrahedra,
       sim.model().num_fixed(), driven.size(), a.stiffness_scale, kappa, a.poisson, steps, diverged,

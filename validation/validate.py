@@ -33,6 +33,15 @@ HAPTIC_R = 1.85     # mm: about 700 spheres
 SPEED_FAST = 150.0  # mm/min: the sweeps load in 1 s; checked against 5 mm/min in "main"
 
 
+def converged_reference(case, nu=0.49):
+    """The Richardson-extrapolated CalculiX curve (reference/converged_<case>_nu<nu>.csv):
+    displacement (mm) and force (N) arrays."""
+    with open(os.path.join(REF_DIR, f"converged_{case}_nu{nu:g}.csv")) as f:
+        rows = list(csv.DictReader(f))
+    return (np.array([float(r["displacement_mm"]) for r in rows]),
+            np.array([float(r["force_N"]) for r in rows]))
+
+
 def read_curve(path):
     with open(path) as f:
         rows = list(csv.reader(f))[1:]

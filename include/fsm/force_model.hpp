@@ -50,8 +50,8 @@ struct PenaltyContact {
   Scalar friction{0};                                ///< Coulomb coefficient.
   Scalar friction_speed{Scalar(1e-3)};               ///< Regularisation speed (m/s).
   Vector3<Scalar> surface_velocity{Vector3<Scalar>::Zero()};  ///< Instrument surface (m/s).
-  Vector3<Scalar> node_start{Vector3<Scalar>::Zero()};   ///< `node`'s position at detection.
-  Vector3<Scalar> other_start{Vector3<Scalar>::Zero()};  ///< `other`'s position at detection.
+  Vector3<Scalar> node_start{Vector3<Scalar>::Zero()};        ///< `node`'s position at detection.
+  Vector3<Scalar> other_start{Vector3<Scalar>::Zero()};       ///< `other`'s position at detection.
   /// Force on `node` (N) at the end of the last accepted step (ForceModel::finish_contacts), or
   /// at detection.
   Vector3<Scalar> force{Vector3<Scalar>::Zero()};
@@ -132,7 +132,9 @@ class ForceModel {
   /// @brief Adds a contact; false (nothing added) when the capacity is full.
   bool add_contact(const PenaltyContact<Scalar>& contact) noexcept;
   [[nodiscard]] Index num_contacts() const noexcept { return m_num_contacts; }
-  [[nodiscard]] const PenaltyContact<Scalar>* contacts() const noexcept { return m_contacts.data(); }
+  [[nodiscard]] const PenaltyContact<Scalar>* contacts() const noexcept {
+    return m_contacts.data();
+  }
   /// @brief Time (s) since the contacts were detected: an instrument contact's surface has moved
   /// by this times its `surface_velocity` (Simulation advances it through each step).
   void set_contact_time(Scalar t) noexcept { m_contact_time = t; }
@@ -153,8 +155,7 @@ class ForceModel {
   /// each contact that penetrates at this state, \f$h\f$ times its linear law minus its clamped
   /// force and \f$h^2 k\,\mathbf{n}(\mathbf{n}\cdot\mathbf{v}_s)\f$ (the instrument's motion
   /// over the step), as prepare_implicit() does for the matrix-free solve; marks them `in_solve`.
-  void add_contact_linearisation(const SphereModel<Scalar>& model, Scalar h,
-                                 Scalar* rhs) noexcept;
+  void add_contact_linearisation(const SphereModel<Scalar>& model, Scalar h, Scalar* rhs) noexcept;
   /// @brief The work (J) the contacts did on the spheres' displacements from `x_before` to the
   /// model's positions over the last step: after an implicit step, the end-of-step force of the
   /// linear law of each contact the solve took (none for the others); after an explicit one, the
@@ -223,12 +224,11 @@ class ForceModel {
   /// @brief After a solve of a step of length h from the model's state: puts into the solve
   /// exactly the instrument contacts that penetrate at the end positions `x_end` (`3|V|`) and
   /// returns whether that changed the set (part contacts keep the start's set: parts touching at
-  /// rest sit at the threshold and would flip every step) (the step is then solved again with keep_contact_set, so that the
-  /// contact law applied is the one of the end state: backward Euler on the piecewise-linear
-  /// penalty, which neither pumps energy into a chattering contact nor lets a sphere pass in
-  /// unopposed).
-  bool update_contact_set(const SphereModel<Scalar>& model, const Scalar* x_end,
-                          Scalar h) noexcept;
+  /// rest sit at the threshold and would flip every step) (the step is then solved again with
+  /// keep_contact_set, so that the contact law applied is the one of the end state: backward Euler
+  /// on the piecewise-linear penalty, which neither pumps energy into a chattering contact nor lets
+  /// a sphere pass in unopposed).
+  bool update_contact_set(const SphereModel<Scalar>& model, const Scalar* x_end, Scalar h) noexcept;
   /// @brief y = A p for the blocks of prepare_implicit(); rows of fixed nodes are zero.
   void apply_implicit(const SphereModel<Scalar>& model, const Scalar* blocks,
                       const ConstPositionsRef& p, PositionsRef y) noexcept;
@@ -279,8 +279,8 @@ class ForceModel {
   std::vector<PenaltyContact<Scalar>> m_contacts;
   Index m_num_contacts{0};
   Scalar m_contact_time{0};
-  bool m_contacts_linearised{false};  // the last step was implicit (contact_work's accounting)
-  std::vector<std::uint8_t> m_force_link;               // per link: carries force
+  bool m_contacts_linearised{false};       // the last step was implicit (contact_work's accounting)
+  std::vector<std::uint8_t> m_force_link;  // per link: carries force
   std::vector<std::pair<Index, Index>> m_force_ranges;  // force links, whatever moves
   detail::ContinuumTerm<Scalar> m_continuum;
   std::vector<Scalar> m_element_force;  // |V| x 3 scratch of prepare_implicit

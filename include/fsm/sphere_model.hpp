@@ -32,8 +32,8 @@ enum class ForceLaw : std::uint8_t {
 /// @brief A named part of a model with its own material (the uterine body, an ovary, ...).
 template <typename Scalar>
 struct Region {
-  std::string name;           ///< Unique, non-empty.
-  Material<Scalar> material;  ///< Its Voigt material.
+  std::string name;               ///< Unique, non-empty.
+  Material<Scalar> material;      ///< Its Voigt material.
   ForceLaw law{ForceLaw::links};  ///< How its spheres resist deformation.
 };
 

@@ -92,8 +92,9 @@ struct TissueModel {
       const std::string what = "part '" + p.name + "'";
       if (p.region < 0 || p.region >= spheres.num_regions()) throw Error("", what, "bad region");
       if (!(p.radius > 0) || !std::isfinite(p.radius))
-        throw Error("", what,
-                    "nominal radius " + std::to_string(p.radius) + " m must be positive and finite");
+        throw Error(
+            "", what,
+            "nominal radius " + std::to_string(p.radius) + " m must be positive and finite");
       if (!inside(p.first_node, p.num_nodes, spheres.num_nodes()))
         throw Error("", what, "node range outside the model");
       if (!inside(p.first_link, p.num_links, spheres.num_links()))

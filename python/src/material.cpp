@@ -13,7 +13,7 @@ All values SI. A bilinear material switches from youngs_modulus to large_strain_
 continuum law only (the link network has 1/4 whatever it says).)")
       .def(py::init([](Scalar density, Scalar youngs_modulus, Scalar viscosity,
                        Scalar large_strain_modulus, Scalar switch_strain, Scalar poisson_ratio) {
-             M mat{density,      youngs_modulus, viscosity, large_strain_modulus,
+             M mat{density,       youngs_modulus, viscosity, large_strain_modulus,
                    switch_strain, poisson_ratio};
              mat.validate("Material");
              return mat;
@@ -28,8 +28,7 @@ out-of-range values.)")
       .def_readwrite("viscosity", &M::viscosity, "Pa s")
       .def_readwrite("large_strain_modulus", &M::large_strain_modulus, "Pa (0: linear)")
       .def_readwrite("switch_strain", &M::switch_strain, "|strain| of the modulus switch")
-      .def_readwrite("poisson_ratio", &M::poisson_ratio,
-                     "nu in (-1, 0.5), of the continuum law")
+      .def_readwrite("poisson_ratio", &M::poisson_ratio, "nu in (-1, 0.5), of the continuum law")
       .def_property_readonly("shear_modulus", &M::shear_modulus, "mu = E / (2 (1 + nu)) in Pa")
       .def_property_readonly("bulk_modulus", &M::bulk_modulus, "K = E / (3 (1 - 2 nu)) in Pa")
       .def_property_readonly("is_bilinear", &M::is_bilinear,

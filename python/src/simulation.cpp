@@ -90,7 +90,8 @@ reported, never left as NaN. Raises fsm.Error for a bad model or option.)")
           [](Sim& sim, int steps, Scalar dt) {
             if (steps < 0) throw Error("", "steps", "is " + std::to_string(steps) + ", not >= 0");
             if (!(dt > 0) || !std::isfinite(dt))
-              throw Error("", "dt", "is " + std::to_string(dt) + " s; it must be positive and finite");
+              throw Error("", "dt",
+                          "is " + std::to_string(dt) + " s; it must be positive and finite");
             int advanced = 0;
             {
               py::gil_scoped_release release;

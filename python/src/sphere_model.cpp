@@ -180,8 +180,8 @@ writing masses, fixed flags or link constants in place, call Simulation.refresh(
       "tetrahedra",
       [](py::object self) {
         Model& mm = self.cast<Model&>();
-        return view<Index>(const_cast<Index*>(mm.tetrahedra().data()), mm.num_tetrahedra(), 4,
-                           self, true);
+        return view<Index>(const_cast<Index*>(mm.tetrahedra().data()), mm.num_tetrahedra(), 4, self,
+                           true);
       },
       "|T| x 4 node indices (int32), a read-only view (add_tetrahedron adds one)");
 }

@@ -102,8 +102,8 @@ WorkEstimate estimate_filling(const PartSpec& spec, const TriangleMesh<double>& 
   const double area = surface_area(surface);
   const Eigen::Vector3d lo = surface.vertices.colwise().minCoeff().transpose();
   const Eigen::Vector3d hi = surface.vertices.colwise().maxCoeff().transpose();
-  const std::string shape = "volume " + si(volume, "cm^3", 1e-6) + ", area " +
-                            si(area, "cm^2", 1e-4);
+  const std::string shape =
+      "volume " + si(volume, "cm^3", 1e-6) + ", area " + si(area, "cm^2", 1e-4);
   switch (spec.topology) {
     case Topology::tetrahedral: {
       const auto metric = spec.metric ? spec.metric : isotropic_metric(spec.radius);
@@ -111,7 +111,8 @@ WorkEstimate estimate_filling(const PartSpec& spec, const TriangleMesh<double>& 
       e.spheres = volume * density + 0.5 * area / (h * h);
       e.elements = 12 * e.spheres;  // 5 tetrahedra + 7 links per sphere
       e.memory_bytes = kTetraBytesPerSphere * e.spheres;
-      e.basis = shape + (metric->is_constant() ? " at element size " : " at element sizes down to ") +
+      e.basis = shape +
+                (metric->is_constant() ? " at element size " : " at element sizes down to ") +
                 si(h, "mm", 1e-3) + (metric->is_constant() ? "" : " (sampled)");
       break;
     }
@@ -157,9 +158,10 @@ void check_budget(const WorkEstimate& part, const WorkEstimate& total, const Bui
                   "%s would need about %.3g %s (%s), and the build %.3g in all: more than the "
                   "limit of %.3g; if this is meant, raise it with \"limits\": {\"%s\": N} in "
                   "the scene or %s N",
-                  what, std::strcmp(quantity, "bytes of memory") == 0 ? part.memory_bytes
-                        : std::strcmp(quantity, "spheres") == 0      ? part.spheres
-                                                                     : part.elements,
+                  what,
+                  std::strcmp(quantity, "bytes of memory") == 0 ? part.memory_bytes
+                  : std::strcmp(quantity, "spheres") == 0       ? part.spheres
+                                                                : part.elements,
                   quantity, part.basis.c_str(), used, limit, key, flag);
     throw Error(file, part_name, buf);
   };
@@ -186,8 +188,8 @@ TriangleMesh<double> prepare_surface(const PartSpec& spec, PartOutcome& out,
     WorkEstimate wrap;
     wrap.elements = 4 * area / (spec.wrap->alpha * spec.wrap->alpha);
     wrap.memory_bytes = kWrapBytesPerFace * wrap.elements;
-    wrap.basis = "input area " + si(area, "cm^2", 1e-4) + " at alpha " +
-                 si(spec.wrap->alpha, "mm", 1e-3);
+    wrap.basis =
+        "input area " + si(area, "cm^2", 1e-4) + " at alpha " + si(spec.wrap->alpha, "mm", 1e-3);
     WorkEstimate total = so_far;
     total.elements += wrap.elements;
     total.memory_bytes = std::max(total.memory_bytes, wrap.memory_bytes);

@@ -50,13 +50,13 @@ class Reader {
   }
 
   /// An integer in [lo, hi], read without wrapping (JSON integers can be 64-bit, signed or not).
-  long long integer(const json& v, const std::string& key, const std::string& where,
-                    long long lo, long long hi) const {
+  long long integer(const json& v, const std::string& key, const std::string& where, long long lo,
+                    long long hi) const {
     const std::string range = "[" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
     if (!v.is_number_integer()) fail(where, "'" + key + "' must be an integer in " + range);
     if (v.is_number_unsigned() && v.get<unsigned long long>() > static_cast<unsigned long long>(hi))
-      fail(where, "'" + key + "' is " + std::to_string(v.get<unsigned long long>()) +
-                      ", outside " + range);
+      fail(where, "'" + key + "' is " + std::to_string(v.get<unsigned long long>()) + ", outside " +
+                      range);
     const long long x = v.get<long long>();
     if (x < lo || x > hi)
       fail(where, "'" + key + "' is " + std::to_string(x) + ", outside " + range);
@@ -236,8 +236,8 @@ PartSpec read_part(const Reader& r, const json& p, std::size_t index, double uni
                                : std::string();
   const std::string where = name.empty() ? "part " + std::to_string(index) : "part '" + name + "'";
   r.keys(p,
-         {"name", "mesh", "meshes", "mesh_units", "topology", "radius", "material", "law",
-          "repair", "metric", "optimiser", "axis", "grid", "packing"},
+         {"name", "mesh", "meshes", "mesh_units", "topology", "radius", "material", "law", "repair",
+          "metric", "optimiser", "axis", "grid", "packing"},
          where);
   if (name.empty()) r.fail(where, "'name' must be a non-empty string");
   if (!names.insert(name).second) r.fail(where, "a part of that name already exists");
@@ -422,13 +422,14 @@ Scene parse_scene(const std::string& text, const std::string& base_dir, const st
 Scene load_scene(const std::string& path) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw Error(path, "", "cannot open the scene file: it does not exist");
-  if (!fs::is_regular_file(path, ec)) throw Error(path, "", "cannot open the scene file: not a regular file");
+  if (!fs::is_regular_file(path, ec))
+    throw Error(path, "", "cannot open the scene file: not a regular file");
   // A scene is a few kilobytes; a file far larger is not one (and is not read into memory).
   constexpr std::uintmax_t k_max_scene_bytes = 16u << 20;
   const std::uintmax_t size = fs::file_size(path, ec);
   if (!ec && size > k_max_scene_bytes)
-    throw Error(path, "", "the scene file has " + std::to_string(size) +
-                              " bytes; a scene is at most 16 MiB");
+    throw Error(path, "",
+                "the scene file has " + std::to_string(size) + " bytes; a scene is at most 16 MiB");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error(path, "", "cannot open the scene file");
   std::stringstream text;

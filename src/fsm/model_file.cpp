@@ -654,8 +654,7 @@ TissueModel<double> parse(std::string_view bytes, const std::string& file) {
   section(k_tag_parts, [&](Reader& r) { model.parts = read_parts(r, version); });
   section(k_tag_attachments, [&](Reader& r) { read_attachments(r, model); });
   section(k_tag_skin, [&](Reader& r) { read_skin(r, model.skin); });
-  if (version >= 2)
-    section(k_tag_tetrahedra, [&](Reader& r) { r.matrix(tets, "tetrahedra"); });
+  if (version >= 2) section(k_tag_tetrahedra, [&](Reader& r) { r.matrix(tets, "tetrahedra"); });
 
   // 5. The model itself, checked as any model is; the checker's message names the file.
   try {

@@ -60,7 +60,8 @@ TEST(UterusModel, TableOneCountsAndAWorkingModel) {
   // The model file keeps everything.
   const TissueModel<double> loaded = deserialize_model(serialize_model(model));
   EXPECT_EQ(loaded.spheres.num_links(), model.spheres.num_links());
-  EXPECT_EQ(TetrahedronArray(loaded.spheres.tetrahedra()), TetrahedronArray(model.spheres.tetrahedra()));
+  EXPECT_EQ(TetrahedronArray(loaded.spheres.tetrahedra()),
+            TetrahedronArray(model.spheres.tetrahedra()));
   EXPECT_EQ(loaded.skin.num_vertices(), model.skin.num_vertices());
   // It steps under gravity at the haptic rate.
   Simulation<double> sim(model.spheres);

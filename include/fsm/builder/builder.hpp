@@ -59,16 +59,16 @@ struct PartReport {
   Topology topology{Topology::tetrahedral};
   double radius{0};  ///< m
   Index spheres{0}, links{0};
-  QualityStats quality;  ///< Tetrahedral parts only.
+  QualityStats quality;     ///< Tetrahedral parts only.
   FidelityReport fidelity;  ///< Tetrahedral parts only.
   Index surface_vertices{0}, surface_faces{0};
   double volume{0};   ///< m^3 of the surface the part was filled from
   double mass{0};     ///< kg
   double seconds{0};  ///< Wall time to build the part.
   std::vector<MeshReport> meshes;
-  std::string metric;     ///< Tetrahedral: the metric's description.
-  std::string optimiser;  ///< Tetrahedral: the optimiser used.
-  WorkEstimate estimate;  ///< The work estimated before filling.
+  std::string metric;                 ///< Tetrahedral: the metric's description.
+  std::string optimiser;              ///< Tetrahedral: the optimiser used.
+  WorkEstimate estimate;              ///< The work estimated before filling.
   std::vector<std::string> warnings;  ///< What built but may not be what was meant.
 };
 

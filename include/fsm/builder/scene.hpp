@@ -84,9 +84,9 @@ struct FixedSpec {
 /// part (or wraps its meshes) the builder estimates the spheres, elements and memory that will
 /// take, and refuses, naming the estimate, when the scene's running total would pass a limit.
 struct BuildLimits {
-  double spheres{200'000};      ///< Spheres of the whole model.
-  double elements{3'000'000};   ///< Tetrahedra, links and alpha-wrap faces of the whole model.
-  double memory_bytes{4.0e9};   ///< Peak memory the build is estimated to need (bytes).
+  double spheres{200'000};     ///< Spheres of the whole model.
+  double elements{3'000'000};  ///< Tetrahedra, links and alpha-wrap faces of the whole model.
+  double memory_bytes{4.0e9};  ///< Peak memory the build is estimated to need (bytes).
 };
 
 /// @brief A scene: parts, attachments, fixed regions.

@@ -112,9 +112,9 @@ struct ContactOptions {
 /// Instrument-sphere contact: penalty \f$f_n = \max(0, k\delta + c\dot\delta)\f$ along the contact
 /// normal (never pulling), plus regularised Coulomb friction on the tangential slip, with \f$k\f$
 /// from ContactOptions::stiffness_ratio. Sphere-sphere contact between parts: the same penalty
-/// where the spheres are closer than \f$\min(r_i + r_j, |\bar{\mathbf{x}}_i - \bar{\mathbf{x}}_j|)\f$
-/// (their rest distance when they overlap at rest, so touching parts are at rest in contact),
-/// excluding linked pairs, with the softer sphere's stiffness.
+/// where the spheres are closer than \f$\min(r_i + r_j, |\bar{\mathbf{x}}_i -
+/// \bar{\mathbf{x}}_j|)\f$ (their rest distance when they overlap at rest, so touching parts are at
+/// rest in contact), excluding linked pairs, with the softer sphere's stiffness.
 template <typename Scalar>
 class ContactSolver {
  public:

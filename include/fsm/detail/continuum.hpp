@@ -70,8 +70,7 @@ inline Matrix3<Scalar> cofactor(const Matrix3<Scalar>& F) noexcept {
 /// beyond the switch, else 1), for the implicit tangent.
 template <typename Scalar>
 inline Scalar deviatoric(const Matrix3<Scalar>& F, Scalar c10, Scalar c10_large, Scalar q_switch,
-                         Scalar j_min, Matrix3<Scalar>* P,
-                         Scalar* stiffening = nullptr) noexcept {
+                         Scalar j_min, Matrix3<Scalar>* P, Scalar* stiffening = nullptr) noexcept {
   const Matrix3<Scalar> cof = cofactor(F);
   const Scalar J = F.col(0).dot(cof.col(0));
   const Scalar I1 = F.squaredNorm();
@@ -104,8 +103,8 @@ class ContinuumTerm {
   /// mode of true stiffness k with tangent k_t is stable only while h^2 k / m < 4 + 2 h^2 k_t / m,
   /// so a tangent at least half the true stiffness keeps every step stable. Measured: a 5 mm ball
   /// pressed 1 mm into a 1 mm lattice diverges at h = 2 ms with a margin of 1 and is stable to
-  /// 5 ms with 2 (docs/physics.md section 11). The equilibrium does not depend on it: the forces are
-  /// exact.
+  /// 5 ms with 2 (docs/physics.md section 11). The equilibrium does not depend on it: the forces
+  /// are exact.
   static constexpr Scalar tangent_margin = Scalar(2);
   /// Below this volume ratio an element's deviatoric energy uses the extension of J^{-2/3}.
   static constexpr double j_min = 0.2;
@@ -146,7 +145,8 @@ class ContinuumTerm {
       if (reg.law != ForceLaw::continuum) continue;
       const Material<Scalar>& mat = reg.material;
       Matrix3<Scalar> Dm;
-      for (int k = 0; k < 3; ++k) Dm.col(k) = (x.row(tets(t, k + 1)) - x.row(tets(t, 0))).transpose();
+      for (int k = 0; k < 3; ++k)
+        Dm.col(k) = (x.row(tets(t, k + 1)) - x.row(tets(t, 0))).transpose();
       const Scalar V = Dm.determinant() / Scalar(6);
       const Matrix3<Scalar> inv = Dm.inverse();
       for (int k = 0; k < 4; ++k) m_tets.push_back(tets(t, k));
@@ -268,16 +268,16 @@ class ContinuumTerm {
       const Scalar V = m_node_volume[std::size_t(a)];
       if (!(V > Scalar(0))) continue;
       const Scalar K = m_node_bulk[std::size_t(a)];
-      volume_now[a] = K * ((volume_now[a] / V - Scalar(1)) +
-                           m_node_tau[std::size_t(a)] * rate[a] / V);
+      volume_now[a] =
+          K * ((volume_now[a] / V - Scalar(1)) + m_node_tau[std::size_t(a)] * rate[a] / V);
     }
     // Pass 2: f = -sum_T pbar_T grad v_T, pbar_T the mean of its nodal pressures.
     for (std::size_t t = 0; t < nt; ++t) {
       const Index* id = &m_tets[4 * t];
       const Scalar* g = &m_grad[12 * t];
-      const Scalar p = (volume_now[id[0]] + volume_now[id[1]] + volume_now[id[2]] +
-                        volume_now[id[3]]) /
-                       Scalar(4);
+      const Scalar p =
+          (volume_now[id[0]] + volume_now[id[1]] + volume_now[id[2]] + volume_now[id[3]]) /
+          Scalar(4);
       for (int k = 0; k < 4; ++k) {
         Scalar* q = f + 3 * std::ptrdiff_t(id[k]);
         q[0] -= p * g[3 * k];
@@ -450,6 +450,24 @@ class ContinuumTerm {
     }
   }
 
+  /// Per node a, the gradient of its nodal volume v_a at x: (node i, d v_a / d x_i) pairs, from
+  /// the elements at a (offline: the assembled tangent and damping matrices).
+  [[nodiscard]] std::vector<std::vector<std::pair<Index, Vector3<Scalar>>>> nodal_volume_gradients(
+      const Scalar* x) const {
+    std::vector<std::vector<std::pair<Index, Vector3<Scalar>>>> grad(
+        static_cast<std::size_t>(m_num_nodes));
+    for (std::size_t t = 0; t < m_volume.size(); ++t) {
+      const Index* id = &m_tets[4 * t];
+      Matrix3<Scalar> Ds;
+      Vector3<Scalar> g[4];
+      load_edges(x, id, Ds);
+      volume_gradient(Ds, g);
+      for (int a = 0; a < 4; ++a)
+        for (int k = 0; k < 4; ++k) grad[std::size_t(id[a])].emplace_back(id[k], g[k] / Scalar(4));
+    }
+    return grad;
+  }
+
   /// The retardation time of node a's region (s), 0 outside continuum regions.
   [[nodiscard]] Scalar node_tau(Index a) const noexcept { return m_node_tau[std::size_t(a)]; }
 
@@ -466,17 +484,7 @@ class ContinuumTerm {
       push_pair(trip, i, j, K);
     }
     // sum_a (K / V_a) grad v_a grad v_a^T, grad v_a = sum_{T at a} grad v_T / 4.
-    std::vector<std::vector<std::pair<Index, Vector3<Scalar>>>> grad(
-        static_cast<std::size_t>(m_num_nodes));
-    for (std::size_t t = 0; t < m_volume.size(); ++t) {
-      const Index* id = &m_tets[4 * t];
-      Matrix3<Scalar> Ds;
-      Vector3<Scalar> g[4];
-      load_edges(x, id, Ds);
-      volume_gradient(Ds, g);
-      for (int a = 0; a < 4; ++a)
-        for (int k = 0; k < 4; ++k) grad[std::size_t(id[a])].emplace_back(id[k], g[k] / Scalar(4));
-    }
+    const auto grad = nodal_volume_gradients(x);
     for (Index a = 0; a < m_num_nodes; ++a) {
       const Scalar V = m_node_volume[std::size_t(a)];
       if (!(V > Scalar(0))) continue;
@@ -502,8 +510,8 @@ class ContinuumTerm {
       if (!(m_node_volume[std::size_t(j)] > Scalar(0))) continue;
       for (int c = 0; c < 3; ++c) {
         const std::size_t k = 3 * std::size_t(j) + std::size_t(c);
-        const Scalar step =
-            std::sqrt(std::numeric_limits<Scalar>::epsilon()) * std::max(Scalar(1e-3), std::abs(xp[k]));
+        const Scalar step = std::sqrt(std::numeric_limits<Scalar>::epsilon()) *
+                            std::max(Scalar(1e-3), std::abs(xp[k]));
         std::fill(fp.begin(), fp.end(), Scalar(0));
         std::fill(fm.begin(), fm.end(), Scalar(0));
         xp[k] += step;
@@ -534,17 +542,7 @@ class ContinuumTerm {
       const Matrix3<Scalar> D = m_edge_tau[e] * m_edge_k[e] * (d / l) * (d / l).transpose();
       push_pair(trip, i, j, D);
     }
-    std::vector<std::vector<std::pair<Index, Vector3<Scalar>>>> grad(
-        static_cast<std::size_t>(m_num_nodes));
-    for (std::size_t t = 0; t < m_volume.size(); ++t) {
-      const Index* id = &m_tets[4 * t];
-      Matrix3<Scalar> Ds;
-      Vector3<Scalar> g[4];
-      load_edges(x, id, Ds);
-      volume_gradient(Ds, g);
-      for (int a = 0; a < 4; ++a)
-        for (int k = 0; k < 4; ++k) grad[std::size_t(id[a])].emplace_back(id[k], g[k] / Scalar(4));
-    }
+    const auto grad = nodal_volume_gradients(x);
     for (Index a = 0; a < m_num_nodes; ++a) {
       const Scalar V = m_node_volume[std::size_t(a)];
       if (!(V > Scalar(0))) continue;
@@ -626,13 +624,13 @@ class ContinuumTerm {
   }
 
   Index m_num_nodes{0};
-  std::vector<Index> m_tets;       // 4 per element
-  std::vector<Scalar> m_dm_inv;    // 9 per element, column-major D_m^-1
-  std::vector<Scalar> m_volume;    // rest volume per element (m^3)
-  std::vector<Scalar> m_c10, m_c10_large, m_q_switch;  // per element
+  std::vector<Index> m_tets;                                   // 4 per element
+  std::vector<Scalar> m_dm_inv;                                // 9 per element, column-major D_m^-1
+  std::vector<Scalar> m_volume;                                // rest volume per element (m^3)
+  std::vector<Scalar> m_c10, m_c10_large, m_q_switch;          // per element
   std::vector<Scalar> m_node_volume, m_node_bulk, m_node_tau;  // per node
-  std::vector<Index> m_edges;      // 2 per edge
-  std::vector<Scalar> m_edge_k, m_edge_tau;  // per edge (N/m, s)
+  std::vector<Index> m_edges;                                  // 2 per edge
+  std::vector<Scalar> m_edge_k, m_edge_tau;                    // per edge (N/m, s)
   // Each edge's spring as the sum of its elements' shares (CSR), so that an element past a
   // bilinear material's switch stiffens the tangent of its edges (m_stiffening, set by
   // add_forces()): a tangent far softer than the forces would make the step unstable.

@@ -222,8 +222,8 @@ Index ForceModel<Scalar>::limit_contact_stiffness(const SphereModel<Scalar>& mod
   Index softened = 0;
   for (Index k = 0; k < m_num_contacts; ++k) {
     PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
-    const Scalar m = c.other < 0 ? mass[c.node]
-                                 : mass[c.node] * mass[c.other] / (mass[c.node] + mass[c.other]);
+    const Scalar m =
+        c.other < 0 ? mass[c.node] : mass[c.node] * mass[c.other] / (mass[c.node] + mass[c.other]);
     const Scalar cap = Scalar(0.5) * m / (h * h);
     if (!(c.stiffness > cap)) continue;
     c.damping *= std::sqrt(cap / c.stiffness);
@@ -247,9 +247,8 @@ void ForceModel<Scalar>::add_contact_linearisation(const SphereModel<Scalar>& mo
     Scalar fn;
     Vector3<Scalar> slip;
     // h (F_linear - F_clamped): evaluate() clamped the force the rhs holds.
-    Vector3<Scalar> r =
-        h * (detail::contact_force(c, x, v, adv, fn, slip, false) -
-             detail::contact_force(c, x, v, adv, fn, slip));
+    Vector3<Scalar> r = h * (detail::contact_force(c, x, v, adv, fn, slip, false) -
+                             detail::contact_force(c, x, v, adv, fn, slip));
     if (c.other < 0) r += h * h * c.stiffness * c.normal.dot(c.surface_velocity) * c.normal;
     for (int a = 0; a < 3; ++a) {
       if (!m_immobile[std::size_t(c.node)]) rhs[3 * c.node + a] += r[a];
@@ -492,8 +491,8 @@ Scalar ForceModel<Scalar>::gravity_energy(const SphereModel<Scalar>& model,
 }
 
 template <typename Scalar>
-bool ForceModel<Scalar>::update_contact_set(const SphereModel<Scalar>& model,
-                                            const Scalar* x_end, Scalar h) noexcept {
+bool ForceModel<Scalar>::update_contact_set(const SphereModel<Scalar>& model, const Scalar* x_end,
+                                            Scalar h) noexcept {
   bool changed = false;
   for (Index k = 0; k < m_num_contacts; ++k) {
     PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
@@ -501,8 +500,7 @@ bool ForceModel<Scalar>::update_contact_set(const SphereModel<Scalar>& model,
       continue;
     if (c.other >= 0) continue;  // part contacts keep the start's set (see the header)
     const bool in =
-        detail::contact_depth(c, x_end, detail::surface_advance(c, m_contact_time + h)) >
-        Scalar(0);
+        detail::contact_depth(c, x_end, detail::surface_advance(c, m_contact_time + h)) > Scalar(0);
     changed = changed || in != c.in_solve;
     c.in_solve = in;
   }
@@ -602,10 +600,10 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
     const Vector3<Scalar> F = detail::contact_force(c, x, v, adv, fn, slip, false);
     detail::contact_kinematics(c, x, v, d, u);
     c.normal_block = active ? h2 * c.stiffness + h * c.damping : Scalar(0);
-    c.tangent_block =
-        active ? h * c.friction * fn /
-                     std::sqrt(slip.squaredNorm() + c.friction_speed * c.friction_speed)
-               : Scalar(0);
+    c.tangent_block = active
+                          ? h * c.friction * fn /
+                                std::sqrt(slip.squaredNorm() + c.friction_speed * c.friction_speed)
+                          : Scalar(0);
     Vector3<Scalar> r = h * F;
     if (active) r -= h2 * c.stiffness * c.normal.dot(u) * c.normal;
     rhs.row(c.node) += r.transpose();

@@ -65,8 +65,8 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg(SphereModel<Scalar>& 
 }
 
 template <typename Scalar>
-IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg_pass(const SphereModel<Scalar>& model,
-                                                                ForceModel<Scalar>& forces) noexcept {
+IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg_pass(
+    const SphereModel<Scalar>& model, ForceModel<Scalar>& forces) noexcept {
   const Scalar bnorm = m_rhs.norm();
   if (!std::isfinite(bnorm)) {  // NaN or infinite forces: no solution to apply
     reset();

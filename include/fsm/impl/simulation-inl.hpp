@@ -63,8 +63,8 @@ void Simulation<Scalar>::refresh() {
   const auto k = m_model.stiffness();
   const auto l0 = m_model.rest_lengths();
   const Scalar s = d.energy_floor_strain;
-  m_energy_floor = Scalar(0.5) * s * s *
-                   (k.dot(l0.cwiseProduct(l0)) + m_forces.element_energy_scale());
+  m_energy_floor =
+      Scalar(0.5) * s * s * (k.dot(l0.cwiseProduct(l0)) + m_forces.element_energy_scale());
   // Sleeping bookkeeping (every region awake after a refresh).
   const Index nr = m_model.num_regions(), nn = m_model.num_nodes();
   const auto region = m_model.node_regions();

@@ -283,8 +283,8 @@ void SphereModel<Scalar>::check_tetrahedron(Index t) const {
   auto fail = [&](const std::string& why) {
     throw Error("",
                 "tetrahedron " + std::to_string(t) + " (nodes " + std::to_string(v[0]) + " " +
-                    std::to_string(v[1]) + " " + std::to_string(v[2]) + " " +
-                    std::to_string(v[3]) + ")",
+                    std::to_string(v[1]) + " " + std::to_string(v[2]) + " " + std::to_string(v[3]) +
+                    ")",
                 why);
   };
   for (int a = 0; a < 4; ++a) {
@@ -371,12 +371,11 @@ SphereModel<Other> SphereModel<Scalar>::cast() const {
   SphereModel<Other> out;
   for (const auto& r : m_regions) {
     const auto& m = r.material;
-    out.m_regions.push_back(
-        {r.name,
-         Material<Other>{Other(m.density), Other(m.youngs_modulus), Other(m.viscosity),
-                         Other(m.large_strain_modulus), Other(m.switch_strain),
-                         Other(m.poisson_ratio)},
-         r.law});
+    out.m_regions.push_back({r.name,
+                             Material<Other>{Other(m.density), Other(m.youngs_modulus),
+                                             Other(m.viscosity), Other(m.large_strain_modulus),
+                                             Other(m.switch_strain), Other(m.poisson_ratio)},
+                             r.law});
   }
   auto conv = [](const std::vector<Scalar>& v) { return std::vector<Other>(v.begin(), v.end()); };
   out.m_position = conv(m_position);

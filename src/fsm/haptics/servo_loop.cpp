@@ -203,12 +203,11 @@ void ServoLoop::physics_step(double t) noexcept {
   auto& ins = m_contacts.instrument(m_instrument);
   const auto& w = m_contacts.wrench(m_instrument);
   const double k = o.coupling_stiffness, b = o.coupling_damping, m = o.proxy_mass;
-  const Eigen::Matrix3d A = (m + h * b + h * h * k) * Eigen::Matrix3d::Identity() +
-                            h * w.damping + h * h * w.stiffness;
+  const Eigen::Matrix3d A =
+      (m + h * b + h * h * k) * Eigen::Matrix3d::Identity() + h * w.damping + h * h * w.stiffness;
   const Vector3<double> rhs =
-      m * m_proxy.velocity +
-      h * (k * (d.position - m_proxy.position) + b * d.velocity + w.force +
-           w.damping * m_proxy.velocity);
+      m * m_proxy.velocity + h * (k * (d.position - m_proxy.position) + b * d.velocity + w.force +
+                                  w.damping * m_proxy.velocity);
   // A is symmetric positive definite (m > 0, K and C positive semi-definite).
   Vector3<double> v = A.llt().solve(rhs);
   if (!v.allFinite()) v.setZero();

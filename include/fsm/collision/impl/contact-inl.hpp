@@ -17,9 +17,9 @@ ContactSolver<Scalar>::ContactSolver(const SphereModel<Scalar>& model,
   const auto& o = m_options;
   if (!(o.stiffness_ratio > 0) || !std::isfinite(o.stiffness_ratio) ||
       !(o.part_stiffness_ratio > 0) || !std::isfinite(o.part_stiffness_ratio) ||
-      !(o.damping_ratio >= 0) ||
-      !std::isfinite(o.damping_ratio) || !(o.friction_speed > 0) || !(o.part_friction >= 0) ||
-      o.max_contacts < 1 || !(o.verlet_skin >= 0) || !std::isfinite(o.verlet_skin))
+      !(o.damping_ratio >= 0) || !std::isfinite(o.damping_ratio) || !(o.friction_speed > 0) ||
+      !(o.part_friction >= 0) || o.max_contacts < 1 || !(o.verlet_skin >= 0) ||
+      !std::isfinite(o.verlet_skin))
     throw Error("", "contact options",
                 "stiffness_ratio, part_stiffness_ratio and friction_speed must be positive, "
                 "damping_ratio and "
@@ -72,8 +72,7 @@ void ContactSolver<Scalar>::refresh(const SphereModel<Scalar>& model) {
                                                         : model.masses()[i] / Scalar(1e-6);
     m_k[std::size_t(i)] = m_options.stiffness_ratio * k;
     m_contact_radius[std::size_t(i)] =
-        m_options.tetrahedral_surface && in_element[std::size_t(i)] ? Scalar(0)
-                                                                    : model.radii()[i];
+        m_options.tetrahedral_surface && in_element[std::size_t(i)] ? Scalar(0) : model.radii()[i];
     ++count[std::size_t(model.node_regions()[i])];
   }
   m_dominant_region =
@@ -406,8 +405,8 @@ void ContactSolver<Scalar>::part_contact(const SphereModel<Scalar>& model, Index
   pc.other_start = x.row(i).transpose();
   Scalar fn;
   Vector3<Scalar> slip;
-  pc.force = fsm::detail::contact_force(pc, x.data(), model.velocities().data(), Scalar(0), fn,
-                                        slip);
+  pc.force =
+      fsm::detail::contact_force(pc, x.data(), model.velocities().data(), Scalar(0), fn, slip);
   if (!pc.point.allFinite()) return;
   emit(pc);
 }
