@@ -471,6 +471,12 @@ def meshes():
                "the header declares elements needing at least")
     write_mesh("ply_face_arity_huge.ply", ply.replace("3 1 2 3", "255 1 2 3"),
                "face 3 declares a list of 255 values, more than the 3 numbers left on its line")
+    write_mesh("ply_element_without_properties.ply",
+               ply.replace("element face 4\n", "element extra 5521555555555\nelement face 4\n"),
+               "element 'extra' declares 5521555555555 instances but no properties")
+    write_mesh("ply_element_line_extra_words.ply",
+               ply.replace("element face 4\n", "element face 4 list uchar int\n"),
+               "line 7: 'element face 4' is followed by 'list'")
     write_mesh("ply_no_face_element.ply", ply.replace("element face 4\n"
                "property list uchar int vertex_indices\n", "").rsplit("3 0 2 1", 1)[0],
                "no 'face' element")
