@@ -218,6 +218,8 @@ class ForceModel {
   /// Contacts: those in the solve take their linear penalty law (exact: the law is linear in the
   /// positions and velocities where it pushes). Which are in the solve is decided at this state
   /// (those that penetrate), or, with `keep_contact_set`, kept as update_contact_set() left them.
+  /// A re-solve of the same state (`keep_contact_set` after a prepare at the same h) recomputes
+  /// only the contacts' part: the links' and elements' blocks, rhs and diagonal are kept.
   void prepare_implicit(const SphereModel<Scalar>& model, Scalar h, JacobianForm form,
                         Scalar* blocks, PositionsRef rhs, PositionsRef diagonal,
                         bool keep_contact_set = false) noexcept;
@@ -229,6 +231,12 @@ class ForceModel {
   /// on the piecewise-linear penalty, which neither pumps energy into a chattering contact nor lets
   /// a sphere pass in unopposed).
   bool update_contact_set(const SphereModel<Scalar>& model, const Scalar* x_end, Scalar h) noexcept;
+  /// @brief The 3 x 3 diagonal blocks of A for the blocks of prepare_implicit() (block-Jacobi
+  /// preconditioner), 6 scalars per node (xx, yy, zz, xy, xz, yz) into `out` (`6|V|`): mass with
+  /// drag, the links' and elements' blocks on their nodes and the contacts in the solve; fixed
+  /// nodes get the identity. Serial; no allocation.
+  void implicit_diagonal_blocks(const SphereModel<Scalar>& model, const Scalar* blocks,
+                                Scalar* out) const noexcept;
   /// @brief y = A p for the blocks of prepare_implicit(); rows of fixed nodes are zero.
   void apply_implicit(const SphereModel<Scalar>& model, const Scalar* blocks,
                       const ConstPositionsRef& p, PositionsRef y) noexcept;
@@ -284,6 +292,9 @@ class ForceModel {
   std::vector<std::pair<Index, Index>> m_force_ranges;  // force links, whatever moves
   detail::ContinuumTerm<Scalar> m_continuum;
   std::vector<Scalar> m_element_force;  // |V| x 3 scratch of prepare_implicit
+  // prepare_implicit's rhs and diagonal before the contacts, for a re-solve of the same state.
+  std::vector<Scalar> m_base_rhs, m_base_diagonal;
+  Scalar m_base_h{-1};
 };
 
 extern template class ForceModel<float>;

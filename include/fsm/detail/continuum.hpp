@@ -392,6 +392,33 @@ class ContinuumTerm {
     }
   }
 
+  /// Adds the 3 x 3 diagonal blocks of the tangent prepared by prepare_implicit() (6 scalars per
+  /// node: xx, yy, zz, xy, xz, yz), with the volumetric part per element as in its diagonal.
+  void add_diagonal_blocks(Scalar* out) const noexcept {
+    if (empty()) return;
+    auto add = [&](Index i, const Scalar* g, Scalar a) {
+      Scalar* o = out + 6 * std::ptrdiff_t(i);
+      o[0] += a * g[0] * g[0];
+      o[1] += a * g[1] * g[1];
+      o[2] += a * g[2] * g[2];
+      o[3] += a * g[0] * g[1];
+      o[4] += a * g[0] * g[2];
+      o[5] += a * g[1] * g[2];
+    };
+    for (std::size_t e = 0; e < num_edges(); ++e) {
+      const Scalar* B = &m_edge_block[4 * e];
+      add(m_edges[2 * e], B, B[3]);
+      add(m_edges[2 * e + 1], B, B[3]);
+    }
+    for (std::size_t t = 0; t < m_volume.size(); ++t) {
+      const Index* id = &m_tets[4 * t];
+      Scalar c(0);
+      for (int a = 0; a < 4; ++a) c += m_node_coefficient[std::size_t(id[a])];
+      for (int k = 0; k < 4; ++k)
+        add(id[k], &m_grad[12 * t + 3 * std::size_t(k)], c / Scalar(16));
+    }
+  }
+
   /// y += A_continuum p for the tangent prepared by prepare_implicit().
   void apply_implicit(const Scalar* p, Scalar* y) noexcept {
     if (empty()) return;

@@ -193,6 +193,7 @@ void ForceModel<Scalar>::start_contacts(const SphereModel<Scalar>& model) noexce
   const Scalar* x = model.positions().data();
   const Scalar* v = model.velocities().data();
   m_contacts_linearised = false;
+  m_base_h = Scalar(-1);  // a new step: prepare_implicit recomputes everything
   for (Index k = 0; k < m_num_contacts; ++k) {
     PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
     Scalar fn;
@@ -337,6 +338,9 @@ void ForceModel<Scalar>::refresh(const SphereModel<Scalar>& model) {
   update_mobility(model);
   m_continuum.refresh(model);
   m_element_force.assign(m_continuum.empty() ? 0 : 3 * std::size_t(n), Scalar(0));
+  m_base_rhs.assign(3 * std::size_t(n), Scalar(0));
+  m_base_diagonal.assign(3 * std::size_t(n), Scalar(0));
+  m_base_h = Scalar(-1);
   // Contacts name nodes of the old model: forget them; keep (at least 1024 of) the capacity.
   clear_contacts();
   reserve_contacts(1024);
@@ -521,6 +525,12 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
   const DampingModel dm = m_options.damping;
   const Scalar h2 = h * h;
   m_implicit_h = h;  // apply_implicit() needs it for the drag term
+  const std::size_t n3 = 3 * std::size_t(model.num_nodes());
+  const bool reuse = keep_contact_set && m_base_h == h && m_base_rhs.size() == n3;
+  if (reuse) {  // a re-solve of the same state: only the contacts change
+    std::copy(m_base_rhs.begin(), m_base_rhs.end(), rhs.data());
+    std::copy(m_base_diagonal.begin(), m_base_diagonal.end(), diagonal.data());
+  } else {
   // rhs = h F + h^2 K v, and the per-link blocks B = h D + h^2 K = a n n^T + b I.
   const Scalar drag = m_options.drag;
   auto init = [&](Index i, Scalar* out) {
@@ -586,6 +596,12 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
     for (std::size_t k = 0; k < m_element_force.size(); ++k) r[k] += h * m_element_force[k];
     m_continuum.prepare_implicit(x, v, h, r, diagonal.data());
   }
+  if (m_base_rhs.size() == n3) {
+    std::copy(rhs.data(), rhs.data() + n3, m_base_rhs.begin());
+    std::copy(diagonal.data(), diagonal.data() + n3, m_base_diagonal.begin());
+    m_base_h = h;
+  }
+  }  // !reuse
   // Contacts: h F + h^2 dF/dx v (with the instrument's motion over the step) into the rhs, and
   // the blocks B = (h^2 k + h c) n n^T + h c_t (I - n n^T) of those that push at the start.
   // A contact in the solve takes its linear law (unclamped) for the whole step.
@@ -621,6 +637,51 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
       diagonal.row(i).setOnes();
     }
   }
+}
+
+template <typename Scalar>
+void ForceModel<Scalar>::implicit_diagonal_blocks(const SphereModel<Scalar>& model,
+                                                  const Scalar* blocks,
+                                                  Scalar* out) const noexcept {
+  const Index n = model.num_nodes();
+  const Scalar* mass = model.masses().data();
+  const Scalar md = Scalar(1) + m_implicit_h * m_options.drag;
+  for (Index i = 0; i < n; ++i) {
+    Scalar* o = out + 6 * std::ptrdiff_t(i);
+    o[0] = o[1] = o[2] = md * mass[i];
+    o[3] = o[4] = o[5] = Scalar(0);
+  }
+  // a n n^T + b I on both ends of a link (and of a contact between parts).
+  auto add = [&](Index i, const Scalar* nv, Scalar a, Scalar b) {
+    Scalar* o = out + 6 * std::ptrdiff_t(i);
+    o[0] += a * nv[0] * nv[0] + b;
+    o[1] += a * nv[1] * nv[1] + b;
+    o[2] += a * nv[2] * nv[2] + b;
+    o[3] += a * nv[0] * nv[1];
+    o[4] += a * nv[0] * nv[2];
+    o[5] += a * nv[1] * nv[2];
+  };
+  const Index* ij = model.links().data();
+  for (const auto& [begin, end] : m_force_ranges)
+    for (Index l = begin; l < end; ++l) {
+      const Scalar* B = blocks + std::ptrdiff_t(implicit_block_size) * l;
+      add(ij[2 * l], B, B[3], B[4]);
+      add(ij[2 * l + 1], B, B[3], B[4]);
+    }
+  m_continuum.add_diagonal_blocks(out);
+  for (Index k = 0; k < m_num_contacts; ++k) {
+    const PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
+    if (!(c.normal_block > Scalar(0)) && !(c.tangent_block > Scalar(0))) continue;
+    const Scalar nv[3] = {c.normal[0], c.normal[1], c.normal[2]};
+    add(c.node, nv, c.normal_block - c.tangent_block, c.tangent_block);
+    if (c.other >= 0) add(c.other, nv, c.normal_block - c.tangent_block, c.tangent_block);
+  }
+  for (Index i = 0; i < n; ++i)
+    if (m_immobile[std::size_t(i)]) {
+      Scalar* o = out + 6 * std::ptrdiff_t(i);
+      o[0] = o[1] = o[2] = Scalar(1);
+      o[3] = o[4] = o[5] = Scalar(0);
+    }
 }
 
 template <typename Scalar>

@@ -14,7 +14,24 @@ void ImplicitEulerIntegrator<Scalar>::prepare(const SphereModel<Scalar>& model) 
       Scalar(0));
   for (Positions<Scalar>* w : {&m_rhs, &m_diag, &m_dv, &m_r, &m_z, &m_p, &m_q, &m_x_end})
     w->setZero(n, 3);
+  m_pblocks.assign(6 * std::size_t(n), Scalar(0));
   m_last_dt = Scalar(0);
+}
+
+template <typename Scalar>
+void ImplicitEulerIntegrator<Scalar>::precondition() noexcept {
+  if (m_options.preconditioner == Preconditioner::jacobi) {
+    m_z = m_r.cwiseQuotient(m_diag);
+    return;
+  }
+  const Index n = m_r.rows();
+  for (Index i = 0; i < n; ++i) {
+    const Scalar* B = &m_pblocks[6 * std::size_t(i)];
+    const Scalar rx = m_r(i, 0), ry = m_r(i, 1), rz = m_r(i, 2);
+    m_z(i, 0) = B[0] * rx + B[3] * ry + B[4] * rz;
+    m_z(i, 1) = B[3] * rx + B[1] * ry + B[5] * rz;
+    m_z(i, 2) = B[4] * rx + B[5] * ry + B[2] * rz;
+  }
 }
 
 template <typename Scalar>
@@ -49,6 +66,31 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg(SphereModel<Scalar>& 
   int total = 0;
   for (int pass = 0;; ++pass) {
     forces.prepare_implicit(model, dt, form, m_blocks.data(), m_rhs, m_diag, pass > 0);
+    if (m_options.preconditioner == Preconditioner::block_jacobi) {
+      // The diagonal blocks, inverted in place (symmetric: 6 scalars); a block that is not
+      // positive definite (a compressed link's indefinite part) falls back to its diagonal.
+      forces.implicit_diagonal_blocks(model, m_blocks.data(), m_pblocks.data());
+      for (Index i = 0; i < n; ++i) {
+        Scalar* B = &m_pblocks[6 * std::size_t(i)];
+        const Scalar a = B[0], b = B[1], c = B[2], d = B[3], e = B[4], f = B[5];
+        const Scalar c00 = b * c - f * f, c01 = e * f - d * c, c02 = d * f - b * e;
+        const Scalar det = a * c00 + d * c01 + e * c02;
+        if (det > Scalar(0) && a > Scalar(0) && a * b - d * d > Scalar(0) && std::isfinite(det)) {
+          const Scalar s = Scalar(1) / det;
+          B[0] = c00 * s;
+          B[1] = (a * c - e * e) * s;
+          B[2] = (a * b - d * d) * s;
+          B[3] = c01 * s;
+          B[4] = c02 * s;
+          B[5] = (d * e - a * f) * s;
+        } else {
+          B[0] = Scalar(1) / m_diag(i, 0);
+          B[1] = Scalar(1) / m_diag(i, 1);
+          B[2] = Scalar(1) / m_diag(i, 2);
+          B[3] = B[4] = B[5] = Scalar(0);
+        }
+      }
+    }
     const IntegratorResult r = solve_cg_pass(model, forces);
     total += r.iterations;
     if (!r.ok) return {false, total};
@@ -78,7 +120,7 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg_pass(
   int it = 0;
   bool ok = true;
   if (!(m_r.norm() <= target)) {  // written so that a NaN residual goes into CG and fails there
-    m_z = m_r.cwiseQuotient(m_diag);
+    precondition();
     m_p = m_z;
     Scalar rz = m_r.cwiseProduct(m_z).sum();
     for (it = 1; it <= m_options.max_iterations; ++it) {
@@ -92,7 +134,7 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg_pass(
       m_dv += alpha * m_p;
       m_r -= alpha * m_q;
       if (m_r.norm() <= target) break;
-      m_z = m_r.cwiseQuotient(m_diag);
+      precondition();
       const Scalar rz_new = m_r.cwiseProduct(m_z).sum();
       m_p = m_z + (rz_new / rz) * m_p;
       rz = rz_new;
