@@ -6,7 +6,7 @@
 Reads  docs/data/bench_force_model.json, docs/data/bench_integrators.json (Google Benchmark JSON)
        docs/data/integrator_accuracy.csv, docs/data/frame_accuracy.csv (if present)
 Writes docs/img/force_per_link.png, docs/img/step_cost.png, docs/img/integrator_speed_accuracy.png,
-       docs/img/frame_speed_accuracy.png
+       docs/img/frame_speed_accuracy.png, docs/img/scale_step_time.png
 """
 import csv
 import json
@@ -88,6 +88,49 @@ def step_chart():
     fig.savefig(os.path.join(IMG, "step_cost.png"), dpi=120)
 
 
+def scale_chart():
+    """Time per 1 ms implicit step against spheres, both laws, 1 and 2 threads; the real-time
+    line (1 kHz) and the largest lattice under it marked."""
+    data = load("bench_integrators.json")
+    series = {}
+    for b in data["benchmarks"]:
+        m = re.match(r"BM_ScaleImplicitStep/cells:\d+/continuum:(\d)/threads:(\d)", b["name"])
+        if not m or b.get("error_occurred"):
+            continue
+        law, threads = m.groups()
+        series.setdefault((law, threads), []).append(
+            (b["spheres"], b["real_time"], b["cg_iters"]))
+    if not series:
+        return
+    fig, ax = plt.subplots(figsize=(6.6, 4.4))
+    best = None
+    for (law, threads), pts in sorted(series.items()):
+        pts.sort()
+        name = "continuum" if law == "1" else "links (the paper's)"
+        ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o",
+                color="tab:purple" if law == "1" else "tab:green",
+                linestyle="-" if threads == "1" else "--",
+                label=f"{name}, {threads} thread{'s' if threads != '1' else ''}")
+        for p in pts:
+            if p[1] <= 1000 and (best is None or p[0] > best[0]):
+                best = (p[0], p[1], name, threads)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_ylim(100, None)
+    ax.axhline(1000, color="black", linewidth=0.8)
+    ax.text(3000, 800, "real time at 1 kHz (1 ms per 1 ms step)", fontsize=7)
+    if best:
+        ax.annotate(f"largest in real time: {best[0]:.0f} spheres ({best[2]}, {best[3]} thr.)",
+                    xy=(best[0], best[1]), xytext=(best[0] * 1.15, best[1] * 0.4), fontsize=7,
+                    arrowprops={"arrowstyle": "->", "linewidth": 0.7})
+    ax.set_xlabel("spheres (cube lattice, 5 mm)")
+    ax.set_ylabel("one 1 ms implicit Euler step, microseconds")
+    ax.set_title("Implicit step against model size (block-Jacobi CG)")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(os.path.join(IMG, "scale_step_time.png"), dpi=120)
+
+
 def accuracy_chart():
     rows = list(csv.DictReader(open(os.path.join(DATA, "integrator_accuracy.csv"))))
     fig, ax = plt.subplots(figsize=(6.4, 4.2))
@@ -146,6 +189,7 @@ if __name__ == "__main__":
     os.makedirs(IMG, exist_ok=True)
     force_chart()
     step_chart()
+    scale_chart()
     accuracy_chart()
     frame_chart()
     print("wrote", ", ".join(sorted(os.listdir(IMG))))

@@ -181,6 +181,17 @@ TEST(ForceModel, MatrixFreeImplicitOperatorMatchesAssembledMatrix) {
     for (Index i = 0; i < n; ++i)
       for (int c = 0; c < 3; ++c)
         EXPECT_TRUE(near(diag(i, c), model.fixed()[i] ? 1.0 : A(3 * i + c, 3 * i + c), 1e-12));
+    // The block-Jacobi blocks are A's 3 x 3 diagonal blocks (identity on fixed nodes).
+    std::vector<double> pb(6 * std::size_t(n));
+    forces.implicit_diagonal_blocks(model, blocks.data(), pb.data());
+    for (Index i = 0; i < n; ++i) {
+      const Eigen::Matrix3d Ai = model.fixed()[i] ? Eigen::Matrix3d::Identity().eval()
+                                                  : A.block<3, 3>(3 * i, 3 * i).eval();
+      const double* B = &pb[6 * std::size_t(i)];
+      Eigen::Matrix3d Bi;
+      Bi << B[0], B[3], B[4], B[3], B[1], B[5], B[4], B[5], B[2];
+      EXPECT_TRUE(matrices_near(Bi, Ai, 1e-12)) << "node " << i;
+    }
   }
 }
 

@@ -54,10 +54,19 @@ solver: "conjugate_gradient" (matrix-free, allocation-free; default), "eigen_ldl
 jacobian: "definite" (default), "symmetric" or "exact".
 tolerance: CG relative residual; max_iterations: CG cap per solve.
 max_contact_passes: solves per step while the set of penetrating contacts changes (1: keep the
-start's set).)")
+start's set).
+preconditioner: CG's, "block_jacobi" (3 x 3 diagonal blocks; default) or "jacobi".)")
       .def(py::init([](const std::string& solver, const std::string& jacobian, Scalar tolerance,
-                       int max_iterations, int max_contact_passes) {
+                       int max_iterations, int max_contact_passes,
+                       const std::string& preconditioner) {
              typename IE::Options o;
+             if (preconditioner == "block_jacobi")
+               o.preconditioner = IE::Preconditioner::block_jacobi;
+             else if (preconditioner == "jacobi")
+               o.preconditioner = IE::Preconditioner::jacobi;
+             else
+               throw Error("", "preconditioner '" + preconditioner + "'",
+                           "unknown; valid: block_jacobi, jacobi");
              if (solver == "conjugate_gradient")
                o.solver = IE::Solver::conjugate_gradient;
              else if (solver == "eigen_ldlt")
@@ -86,7 +95,14 @@ start's set).)")
            }),
            py::arg("solver") = "conjugate_gradient", py::arg("jacobian") = "definite",
            py::arg("tolerance") = 1e-6, py::arg("max_iterations") = 200,
-           py::arg("max_contact_passes") = 3)
+           py::arg("max_contact_passes") = 3, py::arg("preconditioner") = "block_jacobi")
+      .def_property_readonly(
+          "preconditioner",
+          [](const IE& ie) {
+            return ie.options().preconditioner == IE::Preconditioner::jacobi ? "jacobi"
+                                                                             : "block_jacobi";
+          },
+          "CG's preconditioner")
       .def_property_readonly(
           "tolerance", [](const IE& ie) { return ie.options().tolerance; },
           "CG relative residual tolerance")

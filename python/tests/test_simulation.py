@@ -46,6 +46,27 @@ def test_integrators_by_name_and_by_class(block):
         fsm.ImplicitEulerIntegrator(solver="cholmod")
     with pytest.raises(fsm.Error, match="damping 'viscous'"):
         fsm.Simulation(block, damping="viscous")
+    with pytest.raises(fsm.Error, match="preconditioner 'ilu'"):
+        fsm.ImplicitEulerIntegrator(preconditioner="ilu")
+
+
+def test_preconditioners_solve_the_same_step(block):
+    """Jacobi and block-Jacobi CG reach the same states (the preconditioner changes only the path
+    to the solution) and the exact LDLT solve's, to the CG tolerance."""
+    finals = {}
+    for name, ie in [("jacobi", fsm.ImplicitEulerIntegrator(preconditioner="jacobi", tolerance=1e-10)),
+                     ("block_jacobi", fsm.ImplicitEulerIntegrator(tolerance=1e-10)),
+                     ("ldlt", fsm.ImplicitEulerIntegrator(solver="eigen_ldlt"))]:
+        if name != "ldlt":
+            assert ie.preconditioner == name
+        sim = fsm.Simulation(block, integrator=ie)
+        for _ in range(50):
+            assert sim.step(1e-3).status == "ok"
+        finals[name] = sim.model.positions.copy()
+    sag = np.abs(finals["ldlt"] - block.positions).max()
+    assert sag > 1e-5  # gravity moved it
+    for name in ("jacobi", "block_jacobi"):
+        assert np.abs(finals[name] - finals["ldlt"]).max() < 1e-6 * sag
 
 
 def test_divergence_is_reported_and_rolled_back(block):
