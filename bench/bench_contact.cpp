@@ -253,7 +253,6 @@ BENCHMARK(BM_UterusImplicitStepWithContact)
     ->ArgNames({"continuum", "ratio"})
     ->Unit(benchmark::kMicrosecond);
 
-
 // Preconditioners of the implicit step's matrix A = M + h D + h^2 K (assembled at the state of
 // BM_UterusImplicitStepWithContact after 0.3 s of pressing, contacts in), to choose the CG
 // solver's: PCG from zero to |r| <= 1e-6 |b| for a random b, counting iterations, with Jacobi,
@@ -276,9 +275,9 @@ Eigen::SparseMatrix<double> implicit_matrix(const Simulation<double>& sim, doubl
   std::vector<Eigen::Triplet<double>> diag;
   for (Index i = 0; i < n; ++i)
     for (int c = 0; c < 3; ++c)
-      diag.emplace_back(3 * i + c, 3 * i + c,
-                        fixed[std::size_t(i)] ? 1.0
-                                              : model.masses()[i] * (1 + h * forces.options().drag));
+      diag.emplace_back(
+          3 * i + c, 3 * i + c,
+          fixed[std::size_t(i)] ? 1.0 : model.masses()[i] * (1 + h * forces.options().drag));
   Sparse M(3 * n, 3 * n);
   M.setFromTriplets(diag.begin(), diag.end());
   A += M;

@@ -29,7 +29,8 @@ std::string quoted(std::string_view s) {
   constexpr std::size_t k_show = 24;
   std::string out = "'";
   for (const char c : s.substr(0, k_show))
-    out += (static_cast<unsigned char>(c) >= 0x20 && static_cast<unsigned char>(c) < 0x7F) ? c : '?';
+    out +=
+        (static_cast<unsigned char>(c) >= 0x20 && static_cast<unsigned char>(c) < 0x7F) ? c : '?';
   if (s.size() > k_show) out += "...";
   return out + "'";
 }
@@ -152,8 +153,7 @@ Soup parse_obj(std::string_view bytes, const std::string& file) {
       soup.points.push_back(p);
     } else if (key == "f") {
       const std::size_t n = tok.count();
-      if (n < 3)
-        r.fail("face with " + std::to_string(n) + " vertices (a face needs at least 3)");
+      if (n < 3) r.fail("face with " + std::to_string(n) + " vertices (a face needs at least 3)");
       std::vector<std::size_t> face;
       face.reserve(n);  // bounded by the line's length
       std::string_view t;
@@ -246,8 +246,8 @@ Soup parse_off(std::string_view bytes, const std::string& file) {
     while (r.next_line(line))
       if (Tokens(line).count() > 0) return;
     throw Error(file, "",
-                "line " + std::to_string(r.line_number()) + ": the file ends before " + what +
-                    " " + std::to_string(k) + " (truncated, or the header's counts are wrong)");
+                "line " + std::to_string(r.line_number()) + ": the file ends before " + what + " " +
+                    std::to_string(k) + " (truncated, or the header's counts are wrong)");
   };
   for (long long v = 0; v < nv; ++v) {
     content_line("vertex", v);
@@ -271,14 +271,15 @@ Soup parse_off(std::string_view bytes, const std::string& file) {
              ", not a vertex count of at least 3");
     const std::size_t have = tok.count();
     if (std::uint64_t(n) > have)
-      r.fail("face " + std::to_string(f) + " declares " + std::to_string(n) + " vertices, the line has " +
-             std::to_string(have) + " numbers");
+      r.fail("face " + std::to_string(f) + " declares " + std::to_string(n) +
+             " vertices, the line has " + std::to_string(have) + " numbers");
     std::vector<std::size_t> face;
     face.reserve(std::size_t(n));  // n <= the numbers on this line
     for (long long k = 0; k < n; ++k) {
       tok.next(t);
       long long i = 0;
-      if (!parse_integer(t, i)) r.fail("face " + std::to_string(f) + " vertex " + quoted(t) + " is not an integer");
+      if (!parse_integer(t, i))
+        r.fail("face " + std::to_string(f) + " vertex " + quoted(t) + " is not an integer");
       if (i < 0 || i >= nv)
         r.fail("face " + std::to_string(f) + " refers to vertex " + std::to_string(i) +
                ", the file has " + std::to_string(nv) + " (0-based)");
@@ -310,11 +311,11 @@ Soup parse_stl_binary(std::string_view bytes, const std::string& file) {
   const std::uint64_t n = get_u32(bytes.data() + 80);
   const std::uint64_t want = 84 + 50 * n;
   if (want != bytes.size())
-    throw Error(file, "",
-                "binary STL: the header declares " + std::to_string(n) + " facets (" +
-                    std::to_string(want) + " bytes), the file has " +
-                    std::to_string(bytes.size()) +
-                    (want > bytes.size() ? " bytes (truncated)" : " bytes (extra bytes at the end)"));
+    throw Error(
+        file, "",
+        "binary STL: the header declares " + std::to_string(n) + " facets (" +
+            std::to_string(want) + " bytes), the file has " + std::to_string(bytes.size()) +
+            (want > bytes.size() ? " bytes (truncated)" : " bytes (extra bytes at the end)"));
   soup.points.reserve(std::size_t(3 * n));
   soup.polygons.reserve(std::size_t(n));
   for (std::uint64_t f = 0; f < n; ++f) {
@@ -327,8 +328,8 @@ Soup parse_stl_binary(std::string_view bytes, const std::string& file) {
         if (!std::isfinite(q[std::size_t(c)]))
           throw Error(file, "",
                       "byte " + std::to_string(84 + 50 * f + 12 + 12 * k + 4 * c) + ": facet " +
-                          std::to_string(f) + " vertex " + std::to_string(k) + " has a non-finite " +
-                          k_axes[c]);
+                          std::to_string(f) + " vertex " + std::to_string(k) +
+                          " has a non-finite " + k_axes[c]);
       }
       face.push_back(soup.points.size());
       soup.points.push_back(q);
@@ -392,11 +393,13 @@ Soup parse_stl_ascii(std::string_view bytes, const std::string& file) {
     }
   }
   if (state == State::solid)
-    throw Error(file, "", "line " + std::to_string(r.line_number()) +
-                              ": the file ends without 'endsolid' (truncated)");
+    throw Error(file, "",
+                "line " + std::to_string(r.line_number()) +
+                    ": the file ends without 'endsolid' (truncated)");
   if (state != State::outside)
-    throw Error(file, "", "line " + std::to_string(r.line_number()) +
-                              ": the file ends inside a facet (truncated)");
+    throw Error(
+        file, "",
+        "line " + std::to_string(r.line_number()) + ": the file ends inside a facet (truncated)");
   return soup;
 }
 
@@ -409,13 +412,15 @@ Soup parse_stl(std::string_view bytes, const std::string& file) {
   if (bytes.substr(start, 5) == "solid") {
     bool text = true;
     for (const char c : bytes.substr(0, std::min<std::size_t>(bytes.size(), 4096)))
-      text = text && (c == '\n' || c == '\r' || c == '\t' ||
-                      (static_cast<unsigned char>(c) >= 0x20 && static_cast<unsigned char>(c) < 0x7F));
+      text =
+          text && (c == '\n' || c == '\r' || c == '\t' ||
+                   (static_cast<unsigned char>(c) >= 0x20 && static_cast<unsigned char>(c) < 0x7F));
     if (text) return parse_stl_ascii(bytes, file);
   }
   if (bytes.size() < 84)
-    throw Error(file, "", "not an STL file: " + std::to_string(bytes.size()) +
-                              " bytes, neither ASCII ('solid ...') nor a binary STL (84 bytes at least)");
+    throw Error(file, "",
+                "not an STL file: " + std::to_string(bytes.size()) +
+                    " bytes, neither ASCII ('solid ...') nor a binary STL (84 bytes at least)");
   return parse_stl_binary(bytes, file);  // reports the size mismatch
 }
 
@@ -484,8 +489,7 @@ class PlyData {
   double value(PlyType t, const std::string& what) {
     if (ascii()) return ascii_value(t, what);
     const std::size_t n = ply_size(t);
-    if (n > remaining())
-      fail("the file ends inside " + what + " (truncated)");
+    if (n > remaining()) fail("the file ends inside " + what + " (truncated)");
     std::uint64_t bits = 0;
     for (std::size_t k = 0; k < n; ++k) {
       const std::size_t at = m_format == 1 ? n - 1 - k : k;  // 1: little endian
@@ -541,8 +545,7 @@ class PlyData {
   }
 
   [[noreturn]] void fail(const std::string& why) const {
-    if (ascii())
-      throw Error(m_file, "", "line " + std::to_string(m_line) + ": " + why);
+    if (ascii()) throw Error(m_file, "", "line " + std::to_string(m_line) + ": " + why);
     throw Error(m_file, "", "byte " + std::to_string(m_offset + m_pos) + ": " + why);
   }
 
@@ -711,8 +714,7 @@ Soup parse_ply(std::string_view bytes, const std::string& file) {
       have_vertices = true;
     }
     if (face) {
-      if (indices < 0)
-        throw Error(file, "", "the face element has no 'vertex_indices' list");
+      if (indices < 0) throw Error(file, "", "the face element has no 'vertex_indices' list");
       soup.polygons.reserve(std::size_t(e.count));
       have_faces = true;
     }
@@ -745,8 +747,10 @@ Soup parse_ply(std::string_view bytes, const std::string& file) {
         for (std::size_t j = 0; j < std::size_t(n); ++j) {
           const double v = d.value(p.type, what + " " + p.name + " value");
           if (!mine) continue;
-          if (!(v >= 0) || v != std::floor(v) || v >= double(std::numeric_limits<std::int64_t>::max()))
-            d.fail(what + " has vertex index " + std::to_string(v) + ", not a non-negative integer");
+          if (!(v >= 0) || v != std::floor(v) ||
+              v >= double(std::numeric_limits<std::int64_t>::max()))
+            d.fail(what + " has vertex index " + std::to_string(v) +
+                   ", not a non-negative integer");
           polygon.push_back(std::size_t(v));
         }
       }

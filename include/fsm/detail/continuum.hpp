@@ -414,8 +414,7 @@ class ContinuumTerm {
       const Index* id = &m_tets[4 * t];
       Scalar c(0);
       for (int a = 0; a < 4; ++a) c += m_node_coefficient[std::size_t(id[a])];
-      for (int k = 0; k < 4; ++k)
-        add(id[k], &m_grad[12 * t + 3 * std::size_t(k)], c / Scalar(16));
+      for (int k = 0; k < 4; ++k) add(id[k], &m_grad[12 * t + 3 * std::size_t(k)], c / Scalar(16));
     }
   }
 

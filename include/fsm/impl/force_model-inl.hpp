@@ -531,76 +531,76 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
     std::copy(m_base_rhs.begin(), m_base_rhs.end(), rhs.data());
     std::copy(m_base_diagonal.begin(), m_base_diagonal.end(), diagonal.data());
   } else {
-  // rhs = h F + h^2 K v, and the per-link blocks B = h D + h^2 K = a n n^T + b I.
-  const Scalar drag = m_options.drag;
-  auto init = [&](Index i, Scalar* out) {
-    const std::ptrdiff_t k = 3 * std::ptrdiff_t(i);
-    for (int c = 0; c < 3; ++c) out[c] = h * (mass[i] * (g[c] - drag * v[k + c]) + ext[k + c]);
-  };
-  auto kernel = [&](Index begin, Index end, Scalar* out) {
-    for (Index l = begin; l < end; ++l) {
-      if (!m_force_link[std::size_t(l)]) {  // inside a continuum region: no force, no block
-        std::fill_n(blocks + std::ptrdiff_t(implicit_block_size) * l, implicit_block_size,
-                    Scalar(0));
-        continue;
+    // rhs = h F + h^2 K v, and the per-link blocks B = h D + h^2 K = a n n^T + b I.
+    const Scalar drag = m_options.drag;
+    auto init = [&](Index i, Scalar* out) {
+      const std::ptrdiff_t k = 3 * std::ptrdiff_t(i);
+      for (int c = 0; c < 3; ++c) out[c] = h * (mass[i] * (g[c] - drag * v[k + c]) + ext[k + c]);
+    };
+    auto kernel = [&](Index begin, Index end, Scalar* out) {
+      for (Index l = begin; l < end; ++l) {
+        if (!m_force_link[std::size_t(l)]) {  // inside a continuum region: no force, no block
+          std::fill_n(blocks + std::ptrdiff_t(implicit_block_size) * l, implicit_block_size,
+                      Scalar(0));
+          continue;
+        }
+        const detail::LinkState<Scalar> s = detail::link_state(L, l, x, v, dm);
+        Scalar alpha, beta;
+        detail::symmetric_stiffness(s, form, alpha, beta);
+        // Link force on i, and K_l u with u = v_j - v_i.
+        Vector3<Scalar> F = s.total * s.n;
+        if (dm == DampingModel::full_relative_velocity) F += L.kd[l] * s.u;
+        const Vector3<Scalar> Ku = alpha * s.n.dot(s.u) * s.n + beta * s.u;
+        const Vector3<Scalar> r = h * F + h2 * Ku;
+        const std::ptrdiff_t i = 3 * std::ptrdiff_t(L.ij[2 * l]);
+        const std::ptrdiff_t j = 3 * std::ptrdiff_t(L.ij[2 * l + 1]);
+        for (int c = 0; c < 3; ++c) {
+          out[i + c] += r[c];
+          out[j + c] -= r[c];
+        }
+        Scalar* B = blocks + std::ptrdiff_t(implicit_block_size) * l;
+        B[0] = s.n[0];
+        B[1] = s.n[1];
+        B[2] = s.n[2];
+        const bool along = dm == DampingModel::along_link;
+        B[3] = h2 * alpha + (along ? h * L.kd[l] : Scalar(0));
+        B[4] = h2 * beta + (along ? Scalar(0) : h * L.kd[l]);
       }
-      const detail::LinkState<Scalar> s = detail::link_state(L, l, x, v, dm);
-      Scalar alpha, beta;
-      detail::symmetric_stiffness(s, form, alpha, beta);
-      // Link force on i, and K_l u with u = v_j - v_i.
-      Vector3<Scalar> F = s.total * s.n;
-      if (dm == DampingModel::full_relative_velocity) F += L.kd[l] * s.u;
-      const Vector3<Scalar> Ku = alpha * s.n.dot(s.u) * s.n + beta * s.u;
-      const Vector3<Scalar> r = h * F + h2 * Ku;
-      const std::ptrdiff_t i = 3 * std::ptrdiff_t(L.ij[2 * l]);
-      const std::ptrdiff_t j = 3 * std::ptrdiff_t(L.ij[2 * l + 1]);
-      for (int c = 0; c < 3; ++c) {
-        out[i + c] += r[c];
-        out[j + c] -= r[c];
+    };
+    detail::scatter_links(m_options.threads, model.num_nodes(), model.num_links(), rhs.data(),
+                          m_scratch, init, kernel);
+    // Jacobi diagonal: m_i + sum over links of diag(B_l), on both ends.
+    // The drag's Jacobian -gamma m I joins the mass: M (1 + h gamma).
+    auto init_diag = [&](Index i, Scalar* out) {
+      out[0] = out[1] = out[2] = mass[i] * (1 + h * drag);
+    };
+    auto kernel_diag = [&](Index begin, Index end, Scalar* out) {
+      for (Index l = begin; l < end; ++l) {
+        const Scalar* B = blocks + std::ptrdiff_t(implicit_block_size) * l;
+        const std::ptrdiff_t i = 3 * std::ptrdiff_t(L.ij[2 * l]);
+        const std::ptrdiff_t j = 3 * std::ptrdiff_t(L.ij[2 * l + 1]);
+        for (int c = 0; c < 3; ++c) {
+          const Scalar d = B[3] * B[c] * B[c] + B[4];
+          out[i + c] += d;
+          out[j + c] += d;
+        }
       }
-      Scalar* B = blocks + std::ptrdiff_t(implicit_block_size) * l;
-      B[0] = s.n[0];
-      B[1] = s.n[1];
-      B[2] = s.n[2];
-      const bool along = dm == DampingModel::along_link;
-      B[3] = h2 * alpha + (along ? h * L.kd[l] : Scalar(0));
-      B[4] = h2 * beta + (along ? Scalar(0) : h * L.kd[l]);
+    };
+    detail::scatter_links(m_options.threads, model.num_nodes(), model.num_links(), diagonal.data(),
+                          m_scratch, init_diag, kernel_diag);
+    if (!m_continuum.empty()) {
+      // The elements: h F into the rhs, then their tangent (-h^2 H v into the rhs, diag(A)).
+      std::fill(m_element_force.begin(), m_element_force.end(), Scalar(0));
+      m_continuum.add_forces(x, v, m_element_force.data());
+      Scalar* r = rhs.data();
+      for (std::size_t k = 0; k < m_element_force.size(); ++k) r[k] += h * m_element_force[k];
+      m_continuum.prepare_implicit(x, v, h, r, diagonal.data());
     }
-  };
-  detail::scatter_links(m_options.threads, model.num_nodes(), model.num_links(), rhs.data(),
-                        m_scratch, init, kernel);
-  // Jacobi diagonal: m_i + sum over links of diag(B_l), on both ends.
-  // The drag's Jacobian -gamma m I joins the mass: M (1 + h gamma).
-  auto init_diag = [&](Index i, Scalar* out) {
-    out[0] = out[1] = out[2] = mass[i] * (1 + h * drag);
-  };
-  auto kernel_diag = [&](Index begin, Index end, Scalar* out) {
-    for (Index l = begin; l < end; ++l) {
-      const Scalar* B = blocks + std::ptrdiff_t(implicit_block_size) * l;
-      const std::ptrdiff_t i = 3 * std::ptrdiff_t(L.ij[2 * l]);
-      const std::ptrdiff_t j = 3 * std::ptrdiff_t(L.ij[2 * l + 1]);
-      for (int c = 0; c < 3; ++c) {
-        const Scalar d = B[3] * B[c] * B[c] + B[4];
-        out[i + c] += d;
-        out[j + c] += d;
-      }
+    if (m_base_rhs.size() == n3) {
+      std::copy(rhs.data(), rhs.data() + n3, m_base_rhs.begin());
+      std::copy(diagonal.data(), diagonal.data() + n3, m_base_diagonal.begin());
+      m_base_h = h;
     }
-  };
-  detail::scatter_links(m_options.threads, model.num_nodes(), model.num_links(), diagonal.data(),
-                        m_scratch, init_diag, kernel_diag);
-  if (!m_continuum.empty()) {
-    // The elements: h F into the rhs, then their tangent (-h^2 H v into the rhs, diag(A)).
-    std::fill(m_element_force.begin(), m_element_force.end(), Scalar(0));
-    m_continuum.add_forces(x, v, m_element_force.data());
-    Scalar* r = rhs.data();
-    for (std::size_t k = 0; k < m_element_force.size(); ++k) r[k] += h * m_element_force[k];
-    m_continuum.prepare_implicit(x, v, h, r, diagonal.data());
-  }
-  if (m_base_rhs.size() == n3) {
-    std::copy(rhs.data(), rhs.data() + n3, m_base_rhs.begin());
-    std::copy(diagonal.data(), diagonal.data() + n3, m_base_diagonal.begin());
-    m_base_h = h;
-  }
   }  // !reuse
   // Contacts: h F + h^2 dF/dx v (with the instrument's motion over the step) into the rhs, and
   // the blocks B = (h^2 k + h c) n n^T + h c_t (I - n n^T) of those that push at the start.
