@@ -217,36 +217,51 @@ BENCHMARK(BM_UterusSession)
 // solve), the tetrahedral parts on the link law (0) or the continuum law (1), the instrument's
 // contact stiffness_ratio 100 (default) or 10 (softer, cheaper to solve). One core. Counters: CG
 // iterations per step and contacts. The target for the continuum law: 300 us.
-void BM_UterusImplicitStepWithContact(benchmark::State& state) {
-  const auto& model = uterus();
-  SphereModel<double> m = model.spheres;
-  if (state.range(0) != 0)
-    for (const Part& p : model.parts)
-      if (p.topology == Topology::tetrahedral) m.set_region_law(p.region, ForceLaw::continuum);
-  Simulation<double>::Options o;
-  o.forces.drag = 5;
-  Simulation<double> sim(m, o);
-  ContactOptions<double> co;
-  co.stiffness_ratio = double(state.range(1));
-  ContactSolver<double> solver(sim.model(), sim.forces(), co);
-  solver.add_instrument(probe(model.spheres, model.part("body")));
-  // Settle 0.3 s with the probe in, so the measured steps are the steady pressing.
-  for (int s = 0; s < 300; ++s) {
-    solver.compute(sim.model(), sim.forces());
-    sim.step(1e-3);
-    solver.collect(sim.forces());
+// The bundled uterus (tetrahedral parts on the link or the continuum law, drag 5/s) with the
+// capsule probe on the body; step() is one 1 ms step with contacts, settle() 0.3 s of them.
+struct PressedUterus {
+  static Simulation<double> make(bool continuum) {
+    SphereModel<double> m = uterus().spheres;
+    if (continuum)
+      for (const Part& p : uterus().parts)
+        if (p.topology == Topology::tetrahedral) m.set_region_law(p.region, ForceLaw::continuum);
+    Simulation<double>::Options o;
+    o.forces.drag = 5;
+    return Simulation<double>(std::move(m), o);
   }
-  long iterations = 0, steps = 0;
-  for (auto _ : state) {
+  static ContactOptions<double> contact_options(double stiffness_ratio) {
+    ContactOptions<double> co;
+    co.stiffness_ratio = stiffness_ratio;
+    return co;
+  }
+  PressedUterus(bool continuum, double stiffness_ratio)
+      : sim(make(continuum)), solver(sim.model(), sim.forces(), contact_options(stiffness_ratio)) {
+    solver.add_instrument(probe(uterus().spheres, uterus().part("body")));
+  }
+  StepReport<double> step() {
     solver.compute(sim.model(), sim.forces());
     const StepReport<double> r = sim.step(1e-3);
     solver.collect(sim.forces());
-    iterations += r.solver_iterations;
+    return r;
+  }
+  void settle() {
+    for (int s = 0; s < 300; ++s) step();
+  }
+  Simulation<double> sim;
+  ContactSolver<double> solver;
+};
+
+void BM_UterusImplicitStepWithContact(benchmark::State& state) {
+  PressedUterus u(state.range(0) != 0, double(state.range(1)));
+  u.settle();  // the measured steps are the steady pressing
+  long iterations = 0, steps = 0;
+  for (auto _ : state) {
+    iterations += u.step().solver_iterations;
     ++steps;
   }
   state.counters["cg_iterations"] = double(iterations) / double(std::max(steps, 1L));
-  state.counters["contacts"] = double(solver.num_contacts());
-  state.counters["tetrahedra"] = double(m.num_tetrahedra());
+  state.counters["contacts"] = double(u.solver.num_contacts());
+  state.counters["tetrahedra"] = double(u.sim.model().num_tetrahedra());
 }
 BENCHMARK(BM_UterusImplicitStepWithContact)
     ->ArgsProduct({{0, 1}, {100, 10}})
@@ -289,24 +304,12 @@ void BM_UterusPreconditioners(benchmark::State& state) {
   using Sparse = Eigen::SparseMatrix<double>;
   using Vec = Eigen::VectorXd;
   using Clock = std::chrono::steady_clock;
-  const auto& model = uterus();
-  SphereModel<double> m = model.spheres;
-  if (state.range(0) != 0)
-    for (const Part& p : model.parts)
-      if (p.topology == Topology::tetrahedral) m.set_region_law(p.region, ForceLaw::continuum);
-  Simulation<double>::Options o;
-  o.forces.drag = 5;
-  Simulation<double> sim(m, o);
+  PressedUterus u(state.range(0) != 0, ContactOptions<double>().stiffness_ratio);
+  Simulation<double>& sim = u.sim;
   const double h = 1e-3;
-  const Sparse A_rest = implicit_matrix(sim, h);
-  ContactSolver<double> solver(sim.model(), sim.forces());
-  solver.add_instrument(probe(model.spheres, model.part("body")));
-  for (int s = 0; s < 300; ++s) {
-    solver.compute(sim.model(), sim.forces());
-    sim.step(h);
-    solver.collect(sim.forces());
-  }
-  solver.compute(sim.model(), sim.forces());
+  const Sparse A_rest = implicit_matrix(sim, h);  // at rest, before any contact
+  u.settle();
+  u.solver.compute(sim.model(), sim.forces());
   sim.forces().start_contacts(sim.model());
   const Sparse A = implicit_matrix(sim, h);
   const Vec b = Vec::Random(A.rows());

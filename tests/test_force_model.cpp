@@ -195,6 +195,57 @@ TEST(ForceModel, MatrixFreeImplicitOperatorMatchesAssembledMatrix) {
   }
 }
 
+// A contact re-solve (keep_contact_set at the same h) reuses the links' part of rhs and diagonal
+// and recomputes the contacts': it must equal a full prepare with the same contact set.
+TEST(ForceModel, ContactResolveReusesBlocksAndMatchesAFullPrepare) {
+  std::mt19937 rng(21);
+  SphereModel<double> model = random_model<double>(rng, {3, 2, 2}, 0.3, false);
+  model.set_fixed(0);
+  ForceModel<double> forces = no_gravity(model, DampingModel::along_link);
+  auto opt = forces.options();
+  opt.drag = 3.0;
+  forces.set_options(opt);
+  forces.reserve_contacts(4);
+  PenaltyContact<double> tool;  // instrument contact on node 2, penetrating 0.1 mm at the start
+  tool.node = 2;
+  tool.instrument = 0;
+  tool.normal = Vector3<double>(0.3, -0.2, 1.0).normalized();
+  tool.depth = 1e-4;
+  tool.stiffness = 50;
+  tool.damping = 0.1;
+  tool.friction = 0.3;
+  tool.node_start = model.positions().row(2).transpose();
+  PenaltyContact<double> part = tool;  // part contact between nodes 3 and 4
+  part.node = 3;
+  part.other = 4;
+  part.instrument = -1;
+  part.node_start = model.positions().row(3).transpose();
+  part.other_start = model.positions().row(4).transpose();
+  ASSERT_TRUE(forces.add_contact(tool));
+  ASSERT_TRUE(forces.add_contact(part));
+  ForceModel<double> fresh = forces;
+  const Index n = model.num_nodes();
+  const double h = 2e-3;
+  std::vector<double> blocks(5 * std::size_t(model.num_links()));
+  Positions<double> rhs(n, 3), diag(n, 3), rhs2(n, 3), diag2(n, 3);
+  // End positions that take node 2 out of the tool: the set changes.
+  Positions<double> x_end = model.positions();
+  x_end.row(2) += 1e-3 * tool.normal.transpose();
+  forces.start_contacts(model);
+  forces.prepare_implicit(model, h, JacobianForm::symmetric, blocks.data(), rhs, diag);
+  EXPECT_TRUE(forces.contacts()[0].in_solve);
+  ASSERT_TRUE(forces.update_contact_set(model, x_end.data(), h));
+  EXPECT_FALSE(forces.contacts()[0].in_solve);
+  forces.prepare_implicit(model, h, JacobianForm::symmetric, blocks.data(), rhs, diag, true);
+  // The same set, prepared in full: a first prepare at another h stores nothing reusable at h.
+  fresh.start_contacts(model);
+  fresh.prepare_implicit(model, 2 * h, JacobianForm::symmetric, blocks.data(), rhs2, diag2);
+  ASSERT_TRUE(fresh.update_contact_set(model, x_end.data(), h));
+  fresh.prepare_implicit(model, h, JacobianForm::symmetric, blocks.data(), rhs2, diag2, true);
+  EXPECT_TRUE(matrices_near(rhs, rhs2, 1e-14));
+  EXPECT_TRUE(matrices_near(diag, diag2, 1e-14));
+}
+
 // Drag: a free model moving rigidly slows as exp(-gamma t) (links stay unstrained, so nothing else
 // acts), under symplectic and implicit Euler alike to their first-order accuracy.
 TEST(ForceModel, DragDecaysRigidMotionExponentially) {
