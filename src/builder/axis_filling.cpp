@@ -1,6 +1,9 @@
 // Axis filling: a sphere chain along the medial axis found by mesh contraction (CGAL's
 // mean-curvature-flow skeleton, a successor of Au et al. 2008).
 
+// First: it sets CGAL_ALLOCATOR for every CGAL container below (deterministic skeletons).
+#include "deterministic_arena.hpp"
+// (keep)
 #include <CGAL/AABB_face_graph_triangle_primitive.h>
 #include <CGAL/AABB_traits.h>
 #include <CGAL/AABB_tree.h>
@@ -44,11 +47,23 @@ AxisFilling fill_axis(const TriangleMesh<double>& surface, const AxisSpec& spec,
 
   SurfaceMesh sm = to_cgal(surface);
   Skeleton skeleton;
-  try {
-    CGAL::get_default_random() = CGAL::Random(0);  // the medial poles' Delaunay uses it
-    CGAL::extract_mean_curvature_flow_skeleton(sm, skeleton);
-  } catch (const std::exception& e) {
-    throw Error("", where, std::string("medial axis extraction failed: ") + e.what());
+  // In one contiguous arena, so that the contraction's address-ordered choices follow allocation
+  // order (deterministic_arena.hpp); a full arena restarts the extraction with twice the room.
+  constexpr std::size_t k_max_arena = std::size_t(16) << 30;
+  for (std::size_t bytes = (std::size_t(64) << 20) + 4096 * std::size_t(surface.num_faces());;
+       bytes *= 2) {
+    try {
+      skeleton = Skeleton();
+      detail::Arena arena(bytes);
+      CGAL::get_default_random() = CGAL::Random(0);  // the medial poles' Delaunay uses it
+      CGAL::extract_mean_curvature_flow_skeleton(sm, skeleton);
+      break;
+    } catch (const detail::ArenaExhausted&) {
+      if (bytes >= k_max_arena)
+        throw Error("", where, "medial axis extraction needs more than 16 GiB of working memory");
+    } catch (const std::exception& e) {
+      throw Error("", where, std::string("medial axis extraction failed: ") + e.what());
+    }
   }
   const auto nv = boost::num_vertices(skeleton);
   if (nv == 0) throw Error("", where, "the medial axis is empty");

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -253,6 +254,10 @@ void HybridTopologyBuilder::set_limits(const BuildLimits& limits) {
 namespace {
 
 // The state the stages of one build share.
+// Progress only moves forward: filling takes the first 80 % of the bar (by part), linking the next
+// 10 %, binding the render surfaces the rest.
+constexpr double k_fill_share = 0.8, k_link_share = 0.1;
+
 struct Build {
   const Scene& scene;
   const HybridTopologyBuilder::Progress& progress;
@@ -280,7 +285,7 @@ void fill_parts(Build& b) {
     out.report.name = spec.name;
     out.report.topology = spec.topology;
     out.report.radius = spec.radius;
-    b.report_progress(spec.name, "reading meshes", double(p) / double(np));
+    b.report_progress(spec.name, "reading meshes", k_fill_share * double(p) / double(np));
     try {
       out.surface = prepare_surface(spec, out, b.limits, b.total, b.scene.file);
     } catch (const Error& e) {
@@ -306,7 +311,7 @@ void fill_parts(Build& b) {
       out.report.warnings.push_back(buf);
     }
     b.report_progress(spec.name, std::string("filling (") + to_string(spec.topology) + ")",
-                      (double(p) + 0.3) / double(np));
+                      k_fill_share * (double(p) + 0.3) / double(np));
     switch (spec.topology) {
       case Topology::tetrahedral: {
         const auto metric = spec.metric ? spec.metric : isotropic_metric(spec.radius);
@@ -370,7 +375,8 @@ void place_parts(Build& b) {
     const PartSpec& spec = b.scene.parts[p];
     PartOutcome& out = b.outcomes[p];
     const auto t0 = Clock::now();
-    b.report_progress(spec.name, "linking", 0.8);
+    b.report_progress(spec.name, "linking",
+                      k_fill_share + k_link_share * double(p) / double(b.scene.parts.size()));
     Part part;
     part.name = spec.name;
     part.topology = spec.topology;
@@ -618,7 +624,10 @@ void bind_render_surfaces(Build& b) {
   for (std::size_t p = 0; p < b.outcomes.size(); ++p) {
     PartOutcome& out = b.outcomes[p];
     Part& part = b.model.parts[p];
-    b.report_progress(part.name, "binding the render surface", 0.9);
+    b.report_progress(
+        part.name, "binding the render surface",
+        k_fill_share + k_link_share +
+            (1 - k_fill_share - k_link_share) * double(p) / double(b.outcomes.size()));
     Positions<double> pts(0, 3);
     FaceArray faces(0, 3);
     for (const auto& m : out.render) {
@@ -706,7 +715,18 @@ TissueModel<double> HybridTopologyBuilder::build() {
   fix_parts(b);
   bind_render_surfaces(b);
   BuildReport report = make_report(b, since(t_start));
-  b.model.report_json = report.json();
+  // The model file keeps a reproducible copy: no wall times, mesh files named relative to the
+  // scene's folder (not where this machine keeps it).
+  BuildReport stored = report;
+  const std::filesystem::path scene_dir = std::filesystem::path(m_scene.file).parent_path();
+  for (auto& part : stored.parts)
+    for (auto& mesh : part.meshes) {
+      const std::filesystem::path file(mesh.file);
+      const std::filesystem::path relative = file.lexically_relative(scene_dir);
+      const bool inside = !m_scene.file.empty() && !relative.empty() && *relative.begin() != "..";
+      mesh.file = (inside ? relative : file.filename()).generic_string();
+    }
+  b.model.report_json = stored.json(/*wall_times=*/false);
   b.model.validate();
   m_report = std::move(report);
   b.report_progress("", "done", 1.0);
@@ -747,14 +767,14 @@ std::vector<std::string> BuildReport::warnings() const {
   return all;
 }
 
-std::string BuildReport::json() const {
+std::string BuildReport::json(bool wall_times) const {
   nlohmann::json j;
   j["scene"] = scene;
   j["spheres"] = spheres;
   j["links"] = links;
   j["attachment_links"] = attachment_links;
   j["fixed_spheres"] = fixed_nodes;
-  j["seconds"] = seconds;
+  if (wall_times) j["seconds"] = seconds;
   j["warnings"] = warnings();
   for (const auto& p : parts) {
     nlohmann::json q;
@@ -765,7 +785,7 @@ std::string BuildReport::json() const {
     q["links"] = p.links;
     q["volume_m3"] = p.volume;
     q["mass_kg"] = p.mass;
-    q["seconds"] = p.seconds;
+    if (wall_times) q["seconds"] = p.seconds;
     q["surface_vertices"] = p.surface_vertices;
     q["surface_faces"] = p.surface_faces;
     q["estimate"] = {{"spheres", p.estimate.spheres},

@@ -1,71 +1,41 @@
 // fsm-build: builds a scene into a model file and prints a Table-1-like report.
 //
-//   fsm-build SCENE.json -o MODEL.fsm [--json] [--quiet] [--max-spheres N] [--max-elements N]
-//             [--max-memory-gb G]
+//   fsm-build SCENE.json -o MODEL.fsm [--json] [-q|--quiet] [--max-spheres N] [--max-elements N]
+//             [--max-memory-gb G] [--help] [--version]
 //
 // The --max-* options replace the scene's resource budget (docs/builder.md).
 // Progress goes to standard error; the report (text, or JSON with --json) to standard output.
 // Exit status: 0 built, 1 bad input (the message names file, part and reason), 2 bad usage.
 
-#include <cmath>
 #include <cstdio>
-#include <cstdlib>
-#include <cstring>
 #include <new>
 #include <string>
 
 #include "fsm/builder/builder.hpp"
 #include "fsm/model_file.hpp"
-
-namespace {
-[[noreturn]] void usage(const char* why) {
-  std::fprintf(stderr,
-               "fsm-build: %s\nusage: fsm-build SCENE.json -o MODEL.fsm [--json] [--quiet] "
-               "[--max-spheres N] [--max-elements N] [--max-memory-gb G]\n",
-               why);
-  std::exit(2);
-}
-}  // namespace
+#include "fsm_support/cli.hpp"
 
 int main(int argc, char** argv) {
+  CLI::App app(
+      "Builds a scene (docs/scene.md) into a model file (docs/model_file.md) and prints a "
+      "Table-1-like report.",
+      "fsm-build");
+  fsm::support::add_version_flag(app);
   std::string scene, output;
   bool json = false, quiet = false;
   double max_spheres = 0, max_elements = 0, max_memory_gb = 0;  // 0: the scene's
-  auto positive = [&](int& i, const char* what) {
-    if (++i >= argc) usage((std::string("missing value after ") + what).c_str());
-    char* end = nullptr;
-    const double v = std::strtod(argv[i], &end);
-    if (end == argv[i] || *end != '\0' || !(v > 0) || !std::isfinite(v))
-      usage((std::string(what) + " needs a positive number, got '" + argv[i] + "'").c_str());
-    return v;
-  };
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "-o" || a == "--output") {
-      if (++i >= argc) usage("missing path after -o");
-      output = argv[i];
-    } else if (a == "--json") {
-      json = true;
-    } else if (a == "--quiet") {
-      quiet = true;
-    } else if (a == "--max-spheres") {
-      max_spheres = positive(i, "--max-spheres");
-    } else if (a == "--max-elements") {
-      max_elements = positive(i, "--max-elements");
-    } else if (a == "--max-memory-gb") {
-      max_memory_gb = positive(i, "--max-memory-gb");
-    } else if (a == "-h" || a == "--help") {
-      usage("help");
-    } else if (!a.empty() && a[0] == '-') {
-      usage(("unknown option " + a).c_str());
-    } else if (scene.empty()) {
-      scene = a;
-    } else {
-      usage("more than one scene given");
-    }
-  }
-  if (scene.empty()) usage("no scene given");
-  if (output.empty()) usage("no output given (-o MODEL.fsm)");
+  app.add_option("scene", scene, "the scene file (JSON)")->required();
+  app.add_option("-o,--output", output, "the model file to write")->required();
+  app.add_flag("--json", json, "print the report as JSON (warnings also to stderr)");
+  app.add_flag("-q,--quiet", quiet, "no progress on stderr");
+  app.add_option("--max-spheres", max_spheres, "replace the scene's sphere budget")
+      ->check(fsm::support::positive_number());
+  app.add_option("--max-elements", max_elements, "replace the scene's element budget")
+      ->check(fsm::support::positive_number());
+  app.add_option("--max-memory-gb", max_memory_gb, "replace the scene's memory budget (GB)")
+      ->check(fsm::support::positive_number());
+  if (const int status = fsm::support::parse_command_line(app, argc, argv); status >= 0)
+    return status;
   try {
     fsm::build::HybridTopologyBuilder builder(fsm::build::load_scene(scene));
     fsm::build::BuildLimits limits = builder.scene().limits;
@@ -75,8 +45,10 @@ int main(int argc, char** argv) {
     builder.set_limits(limits);
     if (!quiet)
       builder.set_progress([](const std::string& part, const std::string& stage, double f) {
-        std::fprintf(stderr, "[%3.0f%%] %s%s%s\n", 100 * f, part.c_str(), part.empty() ? "" : ": ",
-                     stage.c_str());
+        static double shown = 0;  // the builder's fractions only grow; never print one going back
+        shown = f > shown ? f : shown;
+        std::fprintf(stderr, "[%3.0f%%] %s%s%s\n", 100 * shown, part.c_str(),
+                     part.empty() ? "" : ": ", stage.c_str());
       });
     const fsm::TissueModel<double> model = builder.build();
     fsm::save_model(output, model);

@@ -83,8 +83,10 @@ struct BuildReport {
   [[nodiscard]] std::string table() const;
   /// @brief Every part's warnings, prefixed with the part's name.
   [[nodiscard]] std::vector<std::string> warnings() const;
-  /// @brief The same as JSON (field names in docs/builder.md).
-  [[nodiscard]] std::string json() const;
+  /// @brief The same as JSON (field names in docs/builder.md). Without `wall_times` the
+  /// `seconds` fields are left out: the report a model file keeps is then a function of the scene
+  /// and the library's version only, so building twice gives the same bytes.
+  [[nodiscard]] std::string json(bool wall_times = true) const;
 };
 
 /// @brief Builds a scene into a TissueModel.
