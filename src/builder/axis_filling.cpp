@@ -3,7 +3,7 @@
 
 // First: it sets CGAL_ALLOCATOR for every CGAL container below (deterministic skeletons).
 #include "deterministic_arena.hpp"
-// (keep)
+
 #include <CGAL/AABB_face_graph_triangle_primitive.h>
 #include <CGAL/AABB_traits.h>
 #include <CGAL/AABB_tree.h>
