@@ -5,7 +5,7 @@
 // statistics. Writes PNG renders (rest, deformed), the frame-rate plot and the deformed surface.
 //
 //   fsm-demo [--seconds S] [--out DIR] [--model FILE.fsm|SCENE.json] [--json] [--no-render]
-//            [--stress [N]]
+//            [--stress [N]] [--export DIR [--export-hz HZ]] [--help] [--version]
 //
 // Field names of --json: docs/demo.md.
 
@@ -25,6 +25,8 @@
 #include "fsm/haptics/servo_loop.hpp"
 #include "fsm/implicit_euler_integrator.hpp"
 #include "fsm/model_file.hpp"
+#include "fsm/vtk_export.hpp"
+#include "fsm_support/cli.hpp"
 #include "fsm_support/model_cache.hpp"
 #include "fsm_support/probe.hpp"
 #include "fsm_support/stress.hpp"
@@ -43,52 +45,41 @@ struct Args {
   std::string model;
   bool json{false};
   bool render{true};
-  int stress{0};  // competing busy processes during the session
+  int stress{0};           // competing busy processes during the session
+  std::string export_dir;  // ParaView time series; empty: none
+  double export_hz{10};
 };
 
-Args parse(int argc, char** argv) {
-  Args a;
-  for (int i = 1; i < argc; ++i) {
-    const std::string s = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) throw Error("", "fsm-demo", s + " needs a value");
-      return argv[++i];
-    };
-    if (s == "--seconds") {
-      a.seconds = std::atof(value().c_str());
-      if (!(a.seconds >= 2)) throw Error("", "fsm-demo", "--seconds must be at least 2");
-    } else if (s == "--out") {
-      a.out = value();
-    } else if (s == "--model") {
-      a.model = value();
-    } else if (s == "--json") {
-      a.json = true;
-    } else if (s == "--no-render") {
-      a.render = false;
-    } else if (s == "--stress") {
-      a.stress = 1;
-      if (i + 1 < argc && argv[i + 1][0] != '-') a.stress = std::atoi(argv[++i]);
-      if (a.stress < 1 || a.stress > 64)
-        throw Error("", "fsm-demo", "--stress takes 1 to 64 processes");
-    } else if (s == "--help" || s == "-h") {
-      std::printf(
-          "usage: fsm-demo [--seconds S] [--out DIR] [--model FILE.fsm|SCENE.json] [--json] "
-          "[--no-render]\n"
-          "  --seconds S   simulated session length (default 21; every part is probed once per 21 "
-          "s)\n"
-          "  --out DIR     where renders, the plot, the deformed OBJ and stats.json go (default "
-          "fsm-demo-out)\n"
-          "  --model F     a model file, or a scene to build (default: the bundled uterus, "
-          "cached)\n"
-          "  --json        print the statistics as JSON (docs/demo.md)\n"
-          "  --no-render   skip the PNG renders\n"
-          "  --stress [N]  run N (default 1) competing busy processes during the session\n");
-      std::exit(0);
-    } else {
-      throw Error("", "fsm-demo", "unknown argument '" + s + "' (try --help)");
-    }
-  }
-  return a;
+// Parses the command line (CLI11): returns the exit status when the program should stop there
+// (--help, --version: 0; a usage error: 2), else -1.
+int parse(int argc, char** argv, Args& a) {
+  CLI::App app(
+      "The main job: loads a model (default: the bundled uterus, built and cached on first run), "
+      "then runs a scripted probing session through the 1 kHz servo loop and reports frame and "
+      "servo statistics.",
+      "fsm-demo");
+  support::add_version_flag(app);
+  app.add_option("--seconds", a.seconds,
+                 "simulated session length (s); every part is probed once per session")
+      ->check(CLI::Range(2.0, 3600.0))
+      ->capture_default_str();
+  app.add_option("--out", a.out, "where renders, the plot, the deformed OBJ and stats.json go")
+      ->capture_default_str();
+  app.add_option("--model", a.model,
+                 "a model file (.fsm), or a scene (.json) to build; any parts: each is probed");
+  app.add_flag("--json", a.json, "print the statistics as JSON (docs/demo.md)");
+  app.add_flag("!--no-render", a.render, "skip the PNG renders");
+  app.add_option("--stress", a.stress, "run N competing busy processes during the session")
+      ->expected(0, 1)
+      ->default_str("1")
+      ->check(CLI::Range(1, 64));
+  app.add_option("--export", a.export_dir,
+                 "write the session as a ParaView time series (DIR/fsm.pvd: spheres, links, "
+                 "tetrahedra and the render surface)");
+  app.add_option("--export-hz", a.export_hz, "states per simulated second in --export")
+      ->check(CLI::Range(1.0, 1000.0))
+      ->capture_default_str();
+  return support::parse_command_line(app, argc, argv);
 }
 
 double percentile(std::vector<double> v, double q) {
@@ -101,7 +92,7 @@ void write_obj(const std::string& path, const TissueModel<double>& model,
                const Positions<double>& v) {
   std::ofstream f(path);
   if (!f) throw Error(path, "OBJ", "cannot write");
-  f << "# fsm-demo: the deformed uterus surface (m)\n";
+  f << "# fsm-demo: the deformed surface of " << model.name << " (m)\n";
   for (Index i = 0; i < v.rows(); ++i)
     f << "v " << v(i, 0) << ' ' << v(i, 1) << ' ' << v(i, 2) << '\n';
   for (const Part& p : model.parts) {
@@ -117,8 +108,9 @@ void write_obj(const std::string& path, const TissueModel<double>& model,
 }  // namespace
 
 int main(int argc, char** argv) {
+  Args args;
+  if (const int status = parse(argc, argv, args); status >= 0) return status;
   try {
-    const Args args = parse(argc, argv);
     support::make_dirs(args.out);
     const support::OpenedModel opened = support::open_model(
         args.model, support::source_data_dir(),
@@ -165,9 +157,22 @@ int main(int argc, char** argv) {
     tool.shape = collision::CapsuleShape<double>{shaft_r, half};
     const Index k = contacts.add_instrument(tool);
 
-    const std::vector<std::string> visit = {"body",          "fibroid",       "ovary_left",
-                                            "ovary_right",   "tube_left",     "tube_right",
-                                            "ligament_left", "ligament_right"};
+    // The bundled uterus keeps its session order; any other model has each of its parts probed
+    // in the order the model lists them.
+    const std::vector<std::string> bundled = {"body",          "fibroid",       "ovary_left",
+                                              "ovary_right",   "tube_left",     "tube_right",
+                                              "ligament_left", "ligament_right"};
+    const bool is_bundled = std::all_of(bundled.begin(), bundled.end(), [&](const std::string& n) {
+      return std::any_of(model.parts.begin(), model.parts.end(),
+                         [&](const Part& p) { return p.name == n; });
+    });
+    std::vector<std::string> visit;
+    if (is_bundled) {
+      visit = bundled;
+    } else {
+      for (const Part& p : model.parts) visit.push_back(p.name);
+    }
+    if (visit.empty()) throw Error(source, "fsm-demo", "the model has no part to probe");
     std::vector<Waypoint> script;
     double t = 0;
     const double slot = (args.seconds - 1.0) / double(visit.size());
@@ -179,9 +184,13 @@ int main(int argc, char** argv) {
       script.push_back({t, first.away, first.orientation, 0});
     }
     for (const std::string& part : visit) {
+      // Press 4 mm into the bulky parts (the bundled body and fibroid, any tetrahedral part of
+      // another model), 2.5 mm into the rest.
+      const Part& p = model.part(part);
+      const bool bulky =
+          is_bundled ? (part == "body" || part == "fibroid") : p.topology == Topology::tetrahedral;
       const support::ProbeTarget tg =
-          support::probe_target(model, model.part(part), shaft_r, half,
-                                part == "body" || part == "fibroid" ? 0.004 : 0.0025);
+          support::probe_target(model, p, shaft_r, half, bulky ? 0.004 : 0.0025);
       script.push_back({t + 0.25 * slot, tg.away, tg.orientation, 0});
       script.push_back({t + 0.5 * slot, tg.pressed, tg.orientation, 1});
       script.push_back({t + 0.7 * slot, tg.pressed, tg.orientation, 1});
@@ -191,6 +200,7 @@ int main(int argc, char** argv) {
     ScriptedHapticDevice device(script, DeviceLimits{}, std::size_t(args.seconds * 1000) + 64);
     ServoOptions o;
     o.max_recorded_ticks = std::size_t(args.seconds * 1000) + 64;
+    o.snapshot_velocities = !args.export_dir.empty();
     ServoLoop loop(sim, contacts, k, device, o);
     // Before any thread starts: the children only spin.
     const support::BusyProcesses stress(args.stress);
@@ -202,6 +212,18 @@ int main(int argc, char** argv) {
     ServoSnapshot snap, peak_snap;
     double peak = -1;
     std::vector<double> skin_times;
+    // --export: the render side writes states at export_hz of simulated time, with the force each
+    // sphere feels from the tissue (links or elements, gravity, drag; not the contacts) evaluated
+    // here on a force model of its own.
+    std::unique_ptr<VtkSeriesWriter> exporter;
+    ForceModel<double> export_forces;
+    Positions<double> export_f;
+    double next_export = 0;
+    if (!args.export_dir.empty()) {
+      exporter = std::make_unique<VtkSeriesWriter>(args.export_dir, model.spheres, &model.skin);
+      export_forces = ForceModel<double>(model.spheres, so.forces);
+      export_f.setZero(model.spheres.num_nodes(), 3);
+    }
     loop.start();
     const auto start = std::chrono::steady_clock::now();
     for (int frame = 0;; ++frame) {
@@ -213,6 +235,11 @@ int main(int argc, char** argv) {
         bvh.refit(surface);
         skin_times.push_back(
             std::chrono::duration<double>(std::chrono::steady_clock::now() - s0).count());
+        if (exporter && snap.time >= next_export) {
+          export_forces.evaluate(model.spheres, snap.positions, snap.velocities, export_f);
+          exporter->write(snap.time, snap.positions, snap.velocities, export_f, &surface);
+          next_export = snap.time + 1.0 / args.export_hz;
+        }
         if (snap.tissue_force.norm() > peak) {
           peak = snap.tissue_force.norm();
           peak_snap = snap;
@@ -256,8 +283,8 @@ int main(int argc, char** argv) {
       examples::OrbitCamera cam = examples::frame_model(model);
       examples::SceneFrame rest;
       rest.model = &model;
-      rest.caption =
-          "libfsm: uterus at rest (" + std::to_string(model.spheres.num_nodes()) + " spheres)";
+      rest.caption = "libfsm: " + model.name + " at rest (" +
+                     std::to_string(model.spheres.num_nodes()) + " spheres)";
       examples::draw_scene(rest, cam, gl.width(), gl.height());
       examples::write_png(args.out + "/rest.png", examples::read_pixels(gl.width(), gl.height()),
                           gl.width(), gl.height());
@@ -314,13 +341,14 @@ int main(int argc, char** argv) {
         "\"servo_period_error_p99_us\": %.1f, \"step_p50_us\": %.1f, \"step_p99_us\": %.1f, "
         "\"step_max_us\": %.1f, "
         "\"watchdog_trips\": %zu, \"diverged_steps\": %zu, \"peak_instrument_force_N\": %.4f, "
-        "\"peak_commanded_force_N\": %.4f, \"stress_processes\": %d, \"out\": \"%s\"}",
+        "\"peak_commanded_force_N\": %.4f, \"stress_processes\": %d, \"exported_states\": %zu, "
+        "\"out\": \"%s\"}",
         model.name.c_str(), int(model.spheres.num_nodes()), int(model.spheres.num_links()),
         int(model.skin.num_vertices()), snap.time, frame_hz.size(), fmin, fmed, fmax,
         skin_mean * 1e6, st.ticks, st.missed_deadlines, st.period_p50 * 1e6, st.period_p99 * 1e6,
         st.period_max * 1e6, st.period_error_p99 * 1e6, st.step_p50 * 1e6, st.step_p99 * 1e6,
         st.step_max * 1e6, st.watchdog_trips, st.diverged_steps, peak, st.peak_force,
-        stress.count(), args.out.c_str());
+        stress.count(), exporter ? exporter->states() : std::size_t(0), args.out.c_str());
     {
       std::ofstream f(args.out + "/stats.json");
       f << json << '\n';
@@ -328,10 +356,9 @@ int main(int argc, char** argv) {
     if (args.json) {
       std::printf("%s\n", json);
     } else {
-      std::printf(
-          "session: %.1f s simulated, every part probed (body, fibroid, ovaries, tubes, "
-          "ligaments)\n",
-          snap.time);
+      std::string probed;
+      for (const std::string& part : visit) probed += (probed.empty() ? "" : ", ") + part;
+      std::printf("session: %.1f s simulated, every part probed (%s)\n", snap.time, probed.c_str());
       std::printf(
           "  whole frame (physics 1/60 s at 1 kHz + contacts + skinning): min %.0f Hz, median %.0f "
           "Hz, "
@@ -350,6 +377,9 @@ int main(int argc, char** argv) {
       std::printf(
           "  peak instrument force %.3f N (commanded to the device: %.3f N); watchdog trips %zu\n",
           peak, st.peak_force, st.watchdog_trips);
+      if (exporter)
+        std::printf("  ParaView series: %s (%zu states)\n", exporter->series_path().c_str(),
+                    exporter->states());
       std::printf("  wrote %s/{%sdeformed.obj,frame_rate.csv,stats.json}\n", args.out.c_str(),
                   args.render ? "rest.png,deformed.png,frame_rate.png," : "");
     }

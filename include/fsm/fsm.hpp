@@ -30,3 +30,4 @@
 #include "fsm/version.hpp"
 #include "fsm/voigt_link.hpp"
 #include "fsm/volume_term.hpp"
+#include "fsm/vtk_export.hpp"

@@ -64,6 +64,10 @@ struct ServoOptions {
 
   /// Ticks whose timing is kept for stats() (allocated up front); later ticks are not recorded.
   std::size_t max_recorded_ticks{180000};
+
+  /// Snapshots also carry the spheres' velocities (for export: an extra copy of |V| x 3 doubles
+  /// per step, preallocated).
+  bool snapshot_velocities{false};
 };
 
 /// @brief Timing and safety figures of a run (s unless named otherwise).
@@ -81,8 +85,10 @@ struct ServoStats {
 
 /// @brief What the render side reads: the newest state the simulation published.
 struct ServoSnapshot {
-  double time{0};                                            ///< servo time of the step (s)
-  Positions<double> positions;                               ///< sphere centres (m), |V| x 3
+  double time{0};               ///< servo time of the step (s)
+  Positions<double> positions;  ///< sphere centres (m), |V| x 3
+  Positions<double>
+      velocities;  ///< |V| x 3 (m/s) with ServoOptions::snapshot_velocities, else empty
   collision::Pose<double> instrument;                        ///< the proxy's pose
   Vector3<double> device_position{Vector3<double>::Zero()};  ///< device tip, simulation frame (m)
   Vector3<double> force{Vector3<double>::Zero()};         ///< last commanded force, sim frame (N)

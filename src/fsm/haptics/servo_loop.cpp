@@ -49,6 +49,7 @@ ServoLoop::ServoLoop(Simulation<double>& sim, collision::ContactSolver<double>& 
       m_snapshots([&] {
         ServoSnapshot s;
         s.positions = sim.model().positions();
+        if (options.snapshot_velocities) s.velocities = sim.model().velocities();
         return s;
       }()) {
   const auto& o = m_options;
@@ -235,6 +236,7 @@ void ServoLoop::physics_step(double t) noexcept {
   ServoSnapshot& s = m_snapshots.back();
   s.time = t;
   s.positions = m_sim.model().positions();  // same size: no allocation
+  if (m_options.snapshot_velocities) s.velocities = m_sim.model().velocities();
   s.instrument = ins.pose;
   s.device_position = d.position;
   s.force = d.force;
