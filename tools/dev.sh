@@ -21,7 +21,7 @@ cd "$(dirname "${BASH_SOURCE[0]}")/.."
 PACKAGES=(
   build-essential cmake ninja-build ccache pkg-config git
   libeigen3-dev libccd-dev
-  libcgal-dev libgmp-dev libmpfr-dev libboost-dev nlohmann-json3-dev libcli11-dev
+  libcgal-dev libgmp-dev libmpfr-dev libboost-dev nlohmann-json3-dev libcli11-dev libassimp-dev
   libgtest-dev libgmock-dev libbenchmark-dev libbullet-dev
   python3 python3-dev pybind11-dev python3-numpy python3-pytest
   python3-venv python3-pip python3-setuptools python3-wheel

@@ -37,12 +37,14 @@ part and reason for bad input.)");
       "Generates the procedural uterus (meshes and scene) into a folder; returns the scene path.");
   m.def(
       "read_mesh",
-      [](const std::string& path, double scale) {
-        const TriangleMesh<double> mesh = build::read_mesh(path, scale);
+      [](const std::string& path, double scale, const std::vector<std::string>& nodes) {
+        const TriangleMesh<double> mesh = build::read_mesh(path, scale, nodes);
         return py::make_tuple(mesh.vertices, mesh.faces);
       },
-      py::arg("path"), py::arg("scale") = 1.0,
-      "Reads OBJ/OFF/STL/PLY; returns (vertices |V| x 3 in m after scale, faces |F| x 3).");
+      py::arg("path"), py::arg("scale") = 1.0, py::arg("nodes") = std::vector<std::string>{},
+      "Reads OBJ/OFF/STL/PLY/glTF (.gltf, .glb; `nodes`: the glTF nodes to take, each with its "
+      "subtree and transforms, default all); returns (vertices |V| x 3 in m after scale, faces "
+      "|F| x 3).");
   m.def(
       "inspect_mesh",
       [](const Positions<double>& vertices, const FaceArray& faces) {

@@ -178,9 +178,14 @@ void check_budget(const WorkEstimate& part, const WorkEstimate& total, const Bui
 TriangleMesh<double> prepare_surface(const PartSpec& spec, PartOutcome& out,
                                      const BuildLimits& limits, const WorkEstimate& so_far,
                                      const std::string& scene_file) {
-  for (const std::string& path : spec.meshes) {
-    TriangleMesh<double> m = read_mesh(path, spec.mesh_scale);
-    out.report.meshes.push_back(inspect_mesh(m, path));
+  for (std::size_t k = 0; k < spec.meshes.size(); ++k) {
+    const std::string& path = spec.meshes[k];
+    const std::vector<std::string> nodes =
+        k < spec.mesh_nodes.size() ? spec.mesh_nodes[k] : std::vector<std::string>{};
+    TriangleMesh<double> m = read_mesh(path, spec.mesh_scale, nodes);
+    std::string label = path;  // a glTF's chosen nodes follow its path: "pelvis.glb#uterus,cervix"
+    for (std::size_t n = 0; n < nodes.size(); ++n) label += (n == 0 ? "#" : ",") + nodes[n];
+    out.report.meshes.push_back(inspect_mesh(m, label));
     out.render.push_back(std::move(m));
   }
   if (spec.wrap) {

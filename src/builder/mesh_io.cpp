@@ -64,11 +64,12 @@ std::string lower_extension(const std::string& path) {
 /// Throws fsm::Error naming `path` unless its extension is one of the four supported formats.
 void check_extension(const std::string& path) {
   const std::string ext = lower_extension(path);
-  if (ext == "obj" || ext == "off" || ext == "stl" || ext == "ply") return;
+  if (ext == "obj" || ext == "off" || ext == "stl" || ext == "ply" || ext == "gltf" || ext == "glb")
+    return;
   throw Error(path, "",
               (ext.empty() ? std::string("no file extension")
                            : "unknown mesh file extension '." + ext + "'") +
-                  " (expected .obj, .off, .stl or .ply)");
+                  " (expected .obj, .off, .stl, .ply, .gltf or .glb)");
 }
 
 /// Throws fsm::Error naming `file` (and `part`) for a non-finite vertex or a face index out of
@@ -393,8 +394,12 @@ std::vector<std::string> MeshReport::defects() const {
 // read_mesh / write_mesh
 // -----------------------------------------------------------------------------------------------
 
-TriangleMesh<double> read_mesh(const std::string& path, double scale) {
+TriangleMesh<double> read_mesh(const std::string& path, double scale,
+                               const std::vector<std::string>& nodes) {
   check_extension(path);
+  const bool gltf = lower_extension(path) == "gltf" || lower_extension(path) == "glb";
+  if (!gltf && !nodes.empty())
+    throw Error(path, "", "nodes can only be chosen in a glTF file (.gltf, .glb)");
   if (!(std::isfinite(scale) && scale > 0))
     throw Error(path, "", "scale must be positive and finite, got " + std::to_string(scale));
   std::error_code ec;
@@ -412,7 +417,8 @@ TriangleMesh<double> read_mesh(const std::string& path, double scale) {
     if (in.bad()) throw Error(path, "", "cannot read the file");
     bytes = std::move(s).str();
   }
-  PolygonSoup soup = parse_mesh(bytes, *mesh_format(path), path);
+  PolygonSoup soup =
+      gltf ? read_gltf(bytes, path, nodes) : parse_mesh(bytes, *mesh_format(path), path);
   bytes = std::string();
   if (soup.polygons.empty())
     throw Error(path, "",
@@ -450,6 +456,8 @@ TriangleMesh<double> read_mesh(const std::string& path, double scale) {
 
 void write_mesh(const std::string& path, const TriangleMesh<double>& mesh) {
   check_extension(path);
+  if (lower_extension(path) == "gltf" || lower_extension(path) == "glb")
+    throw Error(path, "", "glTF is read, not written (write .obj, .off, .stl or .ply)");
   check_indices_and_coordinates(mesh, path);
   if (mesh.num_faces() == 0) throw Error(path, "", "cannot write an empty mesh");
   const std::vector<Point> points = to_points(mesh);

@@ -246,15 +246,34 @@ PartSpec read_part(const Reader& r, const json& p, std::size_t index, double uni
   std::vector<std::string> meshes;
   if (p.contains("mesh") == p.contains("meshes"))
     r.fail(where, "give exactly one of 'mesh' and 'meshes'");
+  // A mesh is a path, or {"file": path, "nodes": [names]} to take some nodes of a glTF file.
+  auto mesh_entry = [&](const json& m, const std::string& key) {
+    if (m.is_string()) {
+      meshes.push_back(m.get<std::string>());
+      part.mesh_nodes.emplace_back();
+      return;
+    }
+    if (!m.is_object()) r.fail(where, "'" + key + "' must be a path or {\"file\", \"nodes\"}");
+    r.keys(m, {"file", "nodes"}, where + " " + key);
+    meshes.push_back(r.string(m, "file", where + " " + key));
+    std::vector<std::string> nodes;
+    if (m.contains("nodes")) {
+      if (!m["nodes"].is_array() || m["nodes"].empty())
+        r.fail(where, "'nodes' must be a non-empty list of node names");
+      for (const json& n : m["nodes"]) {
+        if (!n.is_string() || n.get<std::string>().empty())
+          r.fail(where, "'nodes' must be a list of non-empty node names");
+        nodes.push_back(n.get<std::string>());
+      }
+    }
+    part.mesh_nodes.push_back(std::move(nodes));
+  };
   if (p.contains("mesh")) {
-    meshes.push_back(r.string(p, "mesh", where));
+    mesh_entry(p["mesh"], "mesh");
   } else {
     if (!p["meshes"].is_array() || p["meshes"].empty())
       r.fail(where, "'meshes' must be a non-empty list of paths");
-    for (const json& m : p["meshes"]) {
-      if (!m.is_string()) r.fail(where, "'meshes' must be a list of paths");
-      meshes.push_back(m.get<std::string>());
-    }
+    for (const json& m : p["meshes"]) mesh_entry(m, "meshes");
   }
   for (const std::string& m : meshes) {
     const fs::path path = fs::path(m).is_absolute() ? fs::path(m) : fs::path(base_dir) / m;

@@ -23,7 +23,7 @@ std::optional<MeshFormat> mesh_format(const std::string& path);
 /// @brief A mesh file's content as written: points and polygons (indices into the points), before
 /// welding and triangulation.
 struct PolygonSoup {
-  std::vector<std::array<double, 3>> points;      ///< in the file's units
+  std::vector<std::array<double, 3>> points;       ///< in the file's units
   std::vector<std::vector<std::size_t>> polygons;  ///< each at least 3 indices, all < points.size()
 };
 
@@ -68,16 +68,31 @@ struct MeshReport {
   [[nodiscard]] std::vector<std::string> defects() const;
 };
 
-/// @brief Reads a triangle (or polygon, then triangulated) mesh from OBJ, OFF, STL or PLY, chosen
-/// by the file extension, and scales its coordinates by `scale` (to metres). Duplicate vertices are
-/// merged. fsm::Error naming the file for a missing or unreadable file, an unknown extension, an
-/// empty mesh or non-finite coordinates.
+/// @brief Reads a triangle (or polygon, then triangulated) mesh from OBJ, OFF, STL, PLY or glTF,
+/// chosen by the file extension, and scales its coordinates by `scale` (to metres). Duplicate
+/// vertices are merged. fsm::Error naming the file for a missing or unreadable file, an unknown
+/// extension, an empty mesh or non-finite coordinates.
 ///
 /// Only exactly coincident vertices are welded and vertices no face uses dropped; faces are kept
 /// as they are (degenerate, duplicated, inconsistently oriented), for inspect_mesh() to report.
 /// Polygons with more than three vertices are split without new vertices (minimal area).
 /// Extensions are case-insensitive; STL may be ASCII or binary.
-TriangleMesh<double> read_mesh(const std::string& path, double scale = 1.0);
+///
+/// glTF 2.0 (`.gltf` with its buffers, or `.glb`) is read through assimp (read_gltf()): `nodes`
+/// names the nodes to take (each with its subtree, under its node transforms); empty takes the
+/// whole scene. `nodes` must be empty for the other formats.
+TriangleMesh<double> read_mesh(const std::string& path, double scale = 1.0,
+                               const std::vector<std::string>& nodes = {});
+
+/// @brief The triangles of a glTF 2.0 file (`bytes` is its content, `path` where it is, for its
+/// buffers and for messages): the named nodes and their subtrees (all nodes when `nodes` is
+/// empty), each vertex moved by its node's world transform (composed in double). fsm::Error naming
+/// the file, the node and the reason for: malformed JSON or GLB framing, no mesh, a node name that
+/// does not exist (the message lists those that do), a required extension that changes the
+/// geometry's encoding and that this build cannot decode, point or line primitives, a vertex that
+/// is not finite, or anything assimp cannot read (its message).
+PolygonSoup read_gltf(const std::string& bytes, const std::string& path,
+                      const std::vector<std::string>& nodes = {});
 
 /// @brief Writes a mesh as OBJ, OFF, STL or PLY by extension; fsm::Error on failure.
 ///

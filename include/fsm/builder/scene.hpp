@@ -44,7 +44,10 @@ struct PackingSpec {
 struct PartSpec {
   std::string name;
   std::vector<std::string> meshes;  ///< Absolute paths.
-  double mesh_scale{1};             ///< Factor from mesh coordinates to m.
+  /// Per mesh (may be shorter than `meshes`: missing means none): the glTF nodes to take from it;
+  /// empty takes the whole file.
+  std::vector<std::vector<std::string>> mesh_nodes;
+  double mesh_scale{1};  ///< Factor from mesh coordinates to m.
   Topology topology{Topology::tetrahedral};
   double radius{0};  ///< Nominal sphere radius (m).
   Material<double> material;
