@@ -26,7 +26,7 @@ PACKAGES=(
   python3 python3-dev pybind11-dev python3-numpy python3-pytest
   python3-venv python3-pip python3-setuptools python3-wheel
   python3-matplotlib python3-distributed python3-meshio calculix-ccx
-  libglfw3-dev libegl-dev libgl-dev libosmesa6-dev libgl1-mesa-dri libstb-dev xvfb xauth
+  libglfw3-dev libimgui-dev libegl-dev libgl-dev libosmesa6-dev libgl1-mesa-dri libstb-dev xvfb xauth
   clang libclang-rt-14-dev
 )
 

@@ -190,7 +190,7 @@ void draw_scene(const SceneFrame& frame, const OrbitCamera& camera, int width, i
   glEnable(GL_COLOR_MATERIAL);
   glColorMaterial(GL_FRONT_AND_BACK, GL_AMBIENT_AND_DIFFUSE);
 
-  if (frame.model != nullptr && frame.model->skin.num_vertices() > 0) {
+  if (frame.show_surface && frame.model != nullptr && frame.model->skin.num_vertices() > 0) {
     const auto& skin = frame.model->skin;
     const Positions<double>& v = frame.surface != nullptr ? *frame.surface : skin.rest.vertices;
     const FaceArray& faces = skin.rest.faces;
@@ -211,6 +211,20 @@ void draw_scene(const SceneFrame& frame, const OrbitCamera& camera, int width, i
         }
       glEnd();
     }
+  }
+  if (frame.spheres != nullptr && frame.show_links && frame.model != nullptr &&
+      frame.model->spheres.num_nodes() == frame.spheres->rows()) {
+    glDisable(GL_LIGHTING);
+    glLineWidth(1.0f);
+    glColor3f(0.95f, 0.85f, 0.3f);
+    const auto links = frame.model->spheres.links();
+    const Positions<double>& x = *frame.spheres;
+    glBegin(GL_LINES);
+    for (Index l = 0; l < links.rows(); ++l)
+      for (int k = 0; k < 2; ++k)
+        glVertex3d(x(links(l, k), 0), x(links(l, k), 1), x(links(l, k), 2));
+    glEnd();
+    glEnable(GL_LIGHTING);
   }
   if (frame.spheres != nullptr) {
     glDisable(GL_LIGHTING);

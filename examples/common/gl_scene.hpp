@@ -23,6 +23,8 @@ struct SceneFrame {
   const TissueModel<double>* model{nullptr};
   const Positions<double>* surface{nullptr};  ///< skinned vertices (the skin's |S| x 3), or rest
   const Positions<double>* spheres{nullptr};  ///< optional: draw the spheres as points
+  bool show_surface{true};                    ///< draw the render surface
+  bool show_links{false};  ///< with `spheres`: draw the model's links between them as lines
   bool has_instrument{false};
   collision::Pose<double> instrument;
   double instrument_radius{0.003}, instrument_half_length{0.02};  ///< drawn as a capsule

@@ -16,11 +16,18 @@
 
 #include <GLFW/glfw3.h>
 
+#include <backends/imgui_impl_glfw.h>
+#include <backends/imgui_impl_opengl2.h>
+#include <imgui.h>
+
 #include <algorithm>
+#include <cfloat>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <deque>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -28,6 +35,7 @@
 
 #include "fsm/fsm.hpp"
 #include "fsm/haptics/touch_device.hpp"
+#include "fsm_support/cli.hpp"
 #include "fsm_support/model_cache.hpp"
 #include "fsm_support/probe.hpp"
 #include "gl_scene.hpp"
@@ -57,66 +65,63 @@ struct Args {
   std::string check;
   double min_fraction{0.05};
   int width{960}, height{720};
+  std::string integrator{"implicit_euler"};
+  std::string law;  // "", links or continuum
+  bool panel{true};
+  bool exercise_panel{false};
 };
 
-void usage() {
-  std::printf(
-      "usage: fsm-viewer [--model FILE.fsm|SCENE.json] [--device mouse|touch] [--scripted]\n"
-      "                  [--frames N] [--screenshot PATH.png] [--size WxH]\n"
-      "       fsm-viewer --check-screenshot PATH.png [--min-fraction F]\n"
-      "  --model F             a model file, or a scene to build (default: the bundled uterus,\n"
-      "                        built once and cached in $FSM_CACHE_DIR or ~/.cache/fsm)\n"
-      "  --device D            mouse (default) or touch (falls back to the mouse without one)\n"
-      "  --scripted            a scripted probe drives the instrument (no mouse)\n"
-      "  --frames N            render N frames, then exit\n"
-      "  --screenshot P        write the last frame as a PNG\n"
-      "  --size WxH            window size in pixels (default 960x720)\n"
-      "  --check-screenshot P  exit 0 when more than F of the PNG's pixels differ from its\n"
-      "                        top-left one (default F = 0.05), 1 otherwise; opens no window\n"
-      "mouse: left-drag moves the tip in the view plane, shift+scroll or up/down arrows move it\n"
-      "in depth, ctrl+left-click puts it on the surface, right-drag orbits, scroll zooms.\n"
-      "keys: space toggles the spheres, r resets the instrument, esc quits.\n");
-}
+constexpr const char* kControls =
+    "mouse: left-drag moves the tip in the view plane, shift+scroll or up/down arrows move it in "
+    "depth, ctrl+left-click puts it on the surface, right-drag orbits, scroll zooms.\n"
+    "keys: space toggles the spheres, r resets the instrument, esc quits. The panel picks the "
+    "part, "
+    "the integrator, each part's force law and material; pauses, resets; shows force and step "
+    "time.";
 
-Args parse(int argc, char** argv) {
-  Args a;
-  for (int i = 1; i < argc; ++i) {
-    const std::string s = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) throw Error("", "fsm-viewer", s + " needs a value");
-      return argv[++i];
-    };
-    if (s == "--model") {
-      a.model = value();
-    } else if (s == "--device") {
-      a.device = value();
-      if (a.device != "mouse" && a.device != "touch")
-        throw Error("", "fsm-viewer",
-                    "--device must be 'mouse' or 'touch', not '" + a.device + "'");
-    } else if (s == "--scripted") {
-      a.scripted = true;
-    } else if (s == "--frames") {
-      a.frames = std::atol(value().c_str());
-      if (a.frames < 1) throw Error("", "fsm-viewer", "--frames must be at least 1");
-    } else if (s == "--screenshot") {
-      a.screenshot = value();
-    } else if (s == "--size") {
-      const std::string v = value();
-      if (std::sscanf(v.c_str(), "%dx%d", &a.width, &a.height) != 2 || a.width < 16 ||
-          a.height < 16)
-        throw Error("", "fsm-viewer", "--size wants WxH (at least 16x16), not '" + v + "'");
-    } else if (s == "--check-screenshot") {
-      a.check = value();
-    } else if (s == "--min-fraction") {
-      a.min_fraction = std::atof(value().c_str());
-    } else if (s == "--help" || s == "-h") {
-      usage();
-      std::exit(0);
-    } else {
-      throw Error("", "fsm-viewer", "unknown argument '" + s + "' (try --help)");
-    }
+// Parses the command line (CLI11): the exit status when the program should stop there (--help,
+// --version: 0; a usage error: 2), else -1.
+int parse(int argc, char** argv, Args& a) {
+  CLI::App app(
+      "Interactive viewer: press the tissue with a mouse-driven (or Touch, or scripted) "
+      "instrument through the 1 kHz servo loop.",
+      "fsm-viewer");
+  app.footer(kControls);
+  support::add_version_flag(app);
+  app.add_option("--model", a.model,
+                 "a model file, or a scene to build (default: the bundled uterus, built once and "
+                 "cached in $FSM_CACHE_DIR or ~/.cache/fsm)");
+  app.add_option("--device", a.device, "mouse, or touch (falls back to the mouse without one)")
+      ->check(CLI::IsMember({"mouse", "touch"}))
+      ->capture_default_str();
+  app.add_flag("--scripted", a.scripted, "a scripted probe drives the instrument (no mouse)");
+  app.add_option("--integrator", a.integrator, "the simulation's integrator")
+      ->check(CLI::IsMember(integrator_names()))
+      ->capture_default_str();
+  app.add_option("--law", a.law,
+                 "force law of every tetrahedral part: links (the paper's) or continuum")
+      ->check(CLI::IsMember({"links", "continuum"}));
+  app.add_flag("!--no-panel", a.panel, "hide the control panel");
+  app.add_flag("--exercise-panel", a.exercise_panel,
+               "test: issue the panel's requests on a schedule of frames (with --frames)");
+  app.add_option("--frames", a.frames, "render N frames, then exit")->check(CLI::PositiveNumber);
+  app.add_option("--screenshot", a.screenshot, "write the last frame as a PNG");
+  std::string size;
+  app.add_option("--size", size, "window size in pixels, WxH (default 960x720)");
+  app.add_option("--check-screenshot", a.check,
+                 "exit 0 when more than F of the PNG's pixels differ from its top-left one, 1 "
+                 "otherwise; opens no window");
+  app.add_option("--min-fraction", a.min_fraction, "F for --check-screenshot")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  const int status = support::parse_command_line(app, argc, argv);
+  if (status >= 0) return status;
+  if (!size.empty() && (std::sscanf(size.c_str(), "%dx%d", &a.width, &a.height) != 2 ||
+                        a.width < 16 || a.height < 16)) {
+    std::fprintf(stderr, "--size: wants WxH (at least 16x16), not '%s'\n", size.c_str());
+    return 2;
   }
-  return a;
+  return -1;
 }
 
 // ---- The model: as fsm-demo opens it (examples/common/model_cache.hpp); the builder is optional.
@@ -232,8 +237,15 @@ void reset_instrument(View& v) {
   v.tip = hit ? V3(eye + dir * (hit->distance - 0.01)) : V3(eye + dir * (0.7 * v.camera.distance));
 }
 
+// True when the panel has the mouse (or, for keys, the keyboard): the scene ignores the event.
+bool panel_wants(bool keyboard) {
+  if (ImGui::GetCurrentContext() == nullptr) return false;
+  return keyboard ? ImGui::GetIO().WantCaptureKeyboard : ImGui::GetIO().WantCaptureMouse;
+}
+
 void on_button(GLFWwindow* w, int button, int action, int mods) {
   View& v = view_of(w);
+  if (action == GLFW_PRESS && panel_wants(false)) return;
   double x = 0, y = 0;
   glfwGetCursorPos(w, &x, &y);
   v.last_x = x;
@@ -272,6 +284,7 @@ void on_cursor(GLFWwindow* w, double x, double y) {
 
 void on_scroll(GLFWwindow* w, double, double dy) {
   View& v = view_of(w);
+  if (panel_wants(false)) return;
   if (v.mouse_drives && glfwGetKey(w, GLFW_KEY_LEFT_SHIFT) == GLFW_PRESS)
     push(v, -0.002 * dy);  // scroll up pulls the tip toward the eye
   else
@@ -279,7 +292,7 @@ void on_scroll(GLFWwindow* w, double, double dy) {
 }
 
 void on_key(GLFWwindow* w, int key, int, int action, int) {
-  if (action != GLFW_PRESS) return;
+  if (action != GLFW_PRESS || panel_wants(true)) return;
   View& v = view_of(w);
   if (key == GLFW_KEY_ESCAPE || key == GLFW_KEY_Q) glfwSetWindowShouldClose(w, GLFW_TRUE);
   if (key == GLFW_KEY_SPACE) v.show_spheres = !v.show_spheres;
@@ -308,6 +321,207 @@ void draw_coupling(const V3& proxy, const V3& device) {
   glEnable(GL_LIGHTING);
 }
 
+// ---- The control panel (Dear ImGui).
+
+struct PanelRequest {
+  int go_to_part{-1};      // look at (and, with the mouse, put the instrument by) this part
+  std::string integrator;  // switch to this integrator
+  int law_part{-1};        // set this part's region to `law`
+  ForceLaw law{ForceLaw::links};
+  int material_part{-1};  // set this part's region to `material`
+  Material<double> material;
+  bool pause{false}, resume{false}, reset{false};
+  [[nodiscard]] bool changes_simulation() const {
+    return !integrator.empty() || law_part >= 0 || material_part >= 0 || pause || resume || reset;
+  }
+};
+
+class Panel {
+ public:
+  Panel(const TissueModel<double>& model, Simulation<double>& sim, std::string integrator)
+      : m_model(model), m_sim(sim), m_integrator(std::move(integrator)) {
+    for (const Part& p : model.parts) m_part_names.push_back(p.name);
+    load_material();
+  }
+
+  bool show_surface{true}, show_links{false}, paused{false};
+  int applied{0}, refused{0};  // requests applied, and those the simulation refused
+
+  // Keeps the force and step-time history of each new snapshot.
+  void record(const ServoSnapshot& s) {
+    if (s.time <= m_last_time) return;
+    m_last_time = s.time;
+    m_force.push_back(float(s.tissue_force.norm()));
+    if (m_force.size() > 600) m_force.pop_front();
+    m_steps.push_back(s.step_time);
+    if (m_steps.size() > 600) m_steps.pop_front();
+    if (!s.advanced) ++m_diverged;
+  }
+
+  PanelRequest draw(const ServoSnapshot& s, double fps, bool tripped, bool running,
+                    bool& show_spheres) {
+    PanelRequest r;
+    ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
+    ImGui::SetNextWindowSize(ImVec2(430, 0), ImGuiCond_FirstUseEver);
+    ImGui::Begin("libfsm", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
+    ImGui::Text("%s: %d spheres, %d links, %d tetrahedra", m_model.name.c_str(),
+                int(m_model.spheres.num_nodes()), int(m_model.spheres.num_links()),
+                int(m_model.spheres.num_tetrahedra()));
+    ImGui::Text("t = %.2f s   %.0f fps   %s", s.time, fps, running ? "running" : "paused");
+    ImGui::Text("instrument force %.3f N", s.tissue_force.norm());
+    std::vector<float> f(m_force.begin(), m_force.end());
+    ImGui::PlotLines("##force", f.data(), int(f.size()), 0, "force (N), last 600 steps shown", 0.0f,
+                     FLT_MAX, ImVec2(410, 60));
+    std::vector<double> steps(m_steps.begin(), m_steps.end());
+    double p50 = 0, worst = 0;
+    if (!steps.empty()) {
+      worst = *std::max_element(steps.begin(), steps.end());
+      std::nth_element(steps.begin(), steps.begin() + long(steps.size() / 2), steps.end());
+      p50 = steps[steps.size() / 2];
+    }
+    ImGui::Text("step (contacts + %s): p50 %.0f us, max %.0f us", m_integrator.c_str(), p50 * 1e6,
+                worst * 1e6);
+    if (tripped) ImGui::TextColored(ImVec4(1, 0.4f, 0.3f, 1), "force off: servo watchdog");
+    if (m_diverged > 0)
+      ImGui::TextColored(ImVec4(1, 0.7f, 0.2f, 1), "%d diverged steps (rolled back)", m_diverged);
+
+    ImGui::Separator();
+    ImGui::Checkbox("surface", &show_surface);
+    ImGui::SameLine();
+    ImGui::Checkbox("spheres", &show_spheres);
+    ImGui::SameLine();
+    ImGui::Checkbox("links", &show_links);
+    if (ImGui::Button(paused ? "resume" : "pause")) (paused ? r.resume : r.pause) = true;
+    ImGui::SameLine();
+    if (ImGui::Button("reset to rest")) r.reset = true;
+
+    ImGui::Separator();
+    const std::vector<std::string> names = integrator_names();
+    if (ImGui::BeginCombo("integrator", m_integrator.c_str())) {
+      for (const std::string& n : names)
+        if (ImGui::Selectable(n.c_str(), n == m_integrator) && n != m_integrator) r.integrator = n;
+      ImGui::EndCombo();
+    }
+    if (ImGui::BeginCombo("part", m_part_names[std::size_t(m_part)].c_str())) {
+      for (std::size_t k = 0; k < m_part_names.size(); ++k)
+        if (ImGui::Selectable(m_part_names[k].c_str(), int(k) == m_part)) {
+          m_part = int(k);
+          load_material();
+        }
+      ImGui::EndCombo();
+    }
+    if (ImGui::Button("go to part")) r.go_to_part = m_part;
+    const Part& part = m_model.parts[std::size_t(m_part)];
+    const ForceLaw law = m_sim.model().region(part.region).law;
+    int law_index = law == ForceLaw::continuum ? 1 : 0;
+    const char* laws[] = {"links (the paper's)", "continuum (neo-Hookean)"};
+    if (part.num_tetrahedra == 0) {
+      ImGui::TextDisabled("law: links (a %s part has no tetrahedra)", to_string(part.topology));
+    } else if (ImGui::Combo("law", &law_index, laws, 2) &&
+               (law_index == 1) != (law == ForceLaw::continuum)) {
+      r.law_part = m_part;
+      r.law = law_index == 1 ? ForceLaw::continuum : ForceLaw::links;
+    }
+    ImGui::InputDouble("E (kPa)", &m_youngs_kpa, 0, 0, "%.2f");
+    ImGui::InputDouble("viscosity (Pa s)", &m_viscosity, 0, 0, "%.3f");
+    if (part.num_tetrahedra > 0) ImGui::InputDouble("Poisson's ratio", &m_poisson, 0, 0, "%.3f");
+    if (ImGui::Button("apply material")) {
+      r.material_part = m_part;
+      r.material = m_sim.model().region(part.region).material;
+      r.material.youngs_modulus = m_youngs_kpa * 1e3;
+      r.material.viscosity = m_viscosity;
+      r.material.poisson_ratio = m_poisson;
+    }
+    if (!m_message.empty()) ImGui::TextWrapped("%s", m_message.c_str());
+    ImGui::End();
+    return r;
+  }
+
+  // Applies a request to the simulation (the servo loop is stopped). A refused change (a material
+  // out of range, a law the part cannot take) is shown in the panel, never thrown out of it.
+  void apply(const PanelRequest& r,
+             const std::function<std::unique_ptr<Integrator<double>>(const std::string&)>& make) {
+    m_message.clear();
+    try {
+      if (!r.integrator.empty()) {
+        m_sim.set_integrator(make(r.integrator));
+        m_integrator = r.integrator;
+        m_steps.clear();
+      }
+      if (r.law_part >= 0 || r.material_part >= 0) {
+        if (r.law_part >= 0)
+          m_sim.model().set_region_law(m_model.parts[std::size_t(r.law_part)].region, r.law);
+        if (r.material_part >= 0)
+          m_sim.model().set_region_material(m_model.parts[std::size_t(r.material_part)].region,
+                                            r.material);
+        m_sim.refresh();
+        m_steps.clear();
+      }
+      if (r.reset) {
+        m_sim.reset();
+        m_force.clear();
+        m_diverged = 0;
+        m_last_time = -1;
+      }
+    } catch (const Error& e) {
+      m_message = e.what();
+      ++refused;
+      load_material();
+    }
+    ++applied;
+    if (r.pause) paused = true;
+    if (r.resume) paused = false;
+    if (r.reset) m_last_time = -1;
+  }
+
+ private:
+  void load_material() {
+    const Material<double>& m =
+        m_sim.model().region(m_model.parts[std::size_t(m_part)].region).material;
+    m_youngs_kpa = m.youngs_modulus / 1e3;
+    m_viscosity = m.viscosity;
+    m_poisson = m.poisson_ratio;
+  }
+
+  const TissueModel<double>& m_model;
+  Simulation<double>& m_sim;
+  std::string m_integrator;
+  std::vector<std::string> m_part_names;
+  int m_part{0};
+  double m_youngs_kpa{0}, m_viscosity{0}, m_poisson{0};
+  std::deque<float> m_force;
+  std::deque<double> m_steps;
+  double m_last_time{-1};
+  int m_diverged{0};
+  std::string m_message;
+};
+
+// --exercise-panel: the panel's requests on a schedule of frames, through the same path as clicks
+// (for the Xvfb test): every part visited, integrators swapped, a law and a material changed, a
+// material refused (E < 0), pause, resume, reset.
+PanelRequest scripted_request(long frame, const TissueModel<double>& model) {
+  PanelRequest r;
+  const long k = frame - 2;
+  if (k >= 0 && k < long(model.parts.size())) r.go_to_part = int(k);
+  const long t = frame - 2 - long(model.parts.size());
+  Material<double> m = model.spheres.region(model.parts.front().region).material;
+  if (t == 0) r.integrator = "improved_euler";
+  if (t == 2) r.integrator = "implicit_euler";
+  if (t == 4) {
+    r.law_part = 0;
+    r.law = model.parts.front().num_tetrahedra > 0 ? ForceLaw::continuum : ForceLaw::links;
+  }
+  if (t == 6 || t == 8) {
+    r.material_part = 0;
+    r.material = m;
+    r.material.youngs_modulus = t == 6 ? 20e3 : -1.0;  // the second is refused
+  }
+  if (t == 10) r.pause = true;
+  if (t == 12) r.resume = true;
+  if (t == 14) r.reset = true;
+  return r;
+}
+
 int run(const Args& args) {
   glfwSetErrorCallback([](int code, const char* what) {
     std::fprintf(stderr, "fsm-viewer: GLFW %d: %s\n", code, what);
@@ -332,7 +546,19 @@ int run(const Args& args) {
   Simulation<double> sim(model.spheres, so);
   ImplicitEulerIntegrator<double>::Options io;
   io.tolerance = 1e-3;  // as fsm-demo: < 0.1 um from 1e-6 at a third of the CG iterations
-  sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
+  // The integrator and the force laws: the command line's now, the panel's later.
+  auto make_stepper = [&](const std::string& name) -> std::unique_ptr<Integrator<double>> {
+    if (name == "implicit_euler") return std::make_unique<ImplicitEulerIntegrator<double>>(io);
+    return make_integrator<double>(name);
+  };
+  sim.set_integrator(make_stepper(args.integrator));
+  if (!args.law.empty()) {
+    for (const Part& p : model.parts)
+      if (p.num_tetrahedra > 0)
+        sim.model().set_region_law(p.region,
+                                   args.law == "continuum" ? ForceLaw::continuum : ForceLaw::links);
+    sim.refresh();
+  }
   collision::ContactSolver<double> contacts(sim.model(), sim.forces());
   collision::Instrument<double> tool;
   tool.name = "probe";
@@ -401,6 +627,27 @@ int run(const Args& args) {
   glfwSetCursorPosCallback(window, on_cursor);
   glfwSetScrollCallback(window, on_scroll);
   glfwSetKeyCallback(window, on_key);
+  // The panel (Dear ImGui): its GLFW backend chains to the callbacks above.
+  struct Gui {
+    bool on;
+    void shutdown() {
+      if (!on) return;
+      on = false;
+      ImGui_ImplOpenGL2_Shutdown();
+      ImGui_ImplGlfw_Shutdown();
+      ImGui::DestroyContext();
+    }
+    ~Gui() { shutdown(); }
+  } gui{args.panel};
+  if (gui.on) {
+    IMGUI_CHECKVERSION();
+    ImGui::CreateContext();
+    ImGui::GetIO().IniFilename = nullptr;  // no imgui.ini next to the user's files
+    ImGui::StyleColorsDark();
+    ImGui_ImplGlfw_InitForOpenGL(window, true);
+    ImGui_ImplOpenGL2_Init();
+  }
+  Panel panel(model, sim, args.integrator);
 
   // The servo loop starts once the window is up (creating a GL context can take a while).
   auto loop = std::make_unique<ServoLoop>(sim, contacts, instrument, *device, options);
@@ -455,10 +702,23 @@ int run(const Args& args) {
       have_snap = true;
     }
 
+    if (have_snap) panel.record(snap);
+    PanelRequest request;
+    if (gui.on) {
+      ImGui_ImplOpenGL2_NewFrame();
+      ImGui_ImplGlfw_NewFrame();
+      ImGui::NewFrame();
+      request = panel.draw(snap, fps, loop->tripped(), loop->running(), view.show_spheres);
+      ImGui::Render();
+    }
+    if (args.exercise_panel) request = scripted_request(frames, model);
+
     examples::SceneFrame f;
     f.model = &model;
     f.surface = &surface;
-    f.spheres = view.show_spheres && have_snap ? &snap.positions : nullptr;
+    f.show_surface = panel.show_surface;
+    f.show_links = panel.show_links;
+    f.spheres = (view.show_spheres || panel.show_links) && have_snap ? &snap.positions : nullptr;
     f.has_instrument = true;
     f.instrument =
         have_snap ? snap.instrument : collision::Pose<double>{view.centre(), view.orientation};
@@ -474,8 +734,10 @@ int run(const Args& args) {
     std::snprintf(caption, sizeof caption, "%s  t = %.2f s  force %.2f N  %.0f fps%s",
                   device_label.c_str(), snap.time, snap.tissue_force.norm(), fps,
                   loop->tripped() ? "  [force off: servo watchdog]" : "");
-    examples::draw_text(caption, 12, 12, 2.0f, {0.9f, 0.9f, 0.9f}, width, height);
-    if (view.mouse_drives)
+    if (!gui.on)  // the panel shows the same
+      examples::draw_text(caption, 12, 12, 2.0f, {0.9f, 0.9f, 0.9f}, width, height);
+    if (gui.on) ImGui_ImplOpenGL2_RenderDrawData(ImGui::GetDrawData());
+    if (view.mouse_drives && !gui.on)
       examples::draw_text(
           "left-drag: tip  shift+scroll, up/down: depth  ctrl+click: onto surface  "
           "right-drag: orbit  scroll: zoom  space: spheres  r: reset  esc: quit",
@@ -489,17 +751,45 @@ int run(const Args& args) {
     }
     glfwSwapBuffers(window);
     if (last_frame) break;
+
+    // What the panel asked for. Changing the simulation stops the servo loop (the force goes to
+    // zero), applies the change and starts the loop again, which ramps the force back in.
+    if (request.go_to_part >= 0) {
+      const Part& p = model.parts[std::size_t(request.go_to_part)];
+      view.camera.target = (have_snap ? snap.positions : model.spheres.rest_positions())
+                               .middleRows(p.first_node, p.num_nodes)
+                               .colwise()
+                               .mean()
+                               .transpose();
+      if (view.mouse_drives && p.num_nodes > 0) {
+        const support::ProbeTarget tg =
+            support::probe_target(model, p, kShaftRadius, kHalfLength, 0.003);
+        view.orientation = tg.orientation;
+        view.tip = tg.away - tg.orientation * V3(0, 0, kHalfLength + kShaftRadius);
+      }
+    }
+    if (request.changes_simulation()) {
+      loop->stop();
+      panel.apply(request, make_stepper);
+      if (request.reset) {
+        have_snap = false;
+        surface = model.skin.rest.vertices;
+      }
+      if (!panel.paused) loop->start();
+    }
     std::this_thread::sleep_until(now + frame_period);
   }
+  loop->stop();
+  gui.shutdown();
   glfwDestroyWindow(window);
 
-  loop->stop();
   const ServoStats st = loop->stats();
   std::printf(
       "fsm-viewer: %ld frames, %.2f s simulated; servo %zu ticks, period p99 %.0f us, missed "
       "deadlines %zu, watchdog trips %zu, peak force %.2f N\n",
       frames, snap.time, st.ticks, st.period_p99 * 1e6, st.missed_deadlines, st.watchdog_trips,
       st.peak_force);
+  std::printf("fsm-viewer: panel: %d requests applied, %d refused\n", panel.applied, panel.refused);
   if (!args.screenshot.empty()) std::printf("fsm-viewer: wrote %s\n", args.screenshot.c_str());
   return 0;
 }
@@ -507,8 +797,9 @@ int run(const Args& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  Args args;
+  if (const int status = parse(argc, argv, args); status >= 0) return status;
   try {
-    const Args args = parse(argc, argv);
     if (!args.check.empty()) {
       const double f = examples::png_non_background_fraction(args.check);
       const bool ok = f > args.min_fraction;

@@ -93,6 +93,8 @@ struct ServoSnapshot {
   Vector3<double> device_position{Vector3<double>::Zero()};  ///< device tip, simulation frame (m)
   Vector3<double> force{Vector3<double>::Zero()};         ///< last commanded force, sim frame (N)
   Vector3<double> tissue_force{Vector3<double>::Zero()};  ///< contact force on the instrument (N)
+  double step_time{0};  ///< wall time of this step: contacts + simulation step (s)
+  bool advanced{true};  ///< false: this step diverged and was rolled back
 };
 
 /// @brief Couples a HapticDevice to a Simulation at the servo rate.

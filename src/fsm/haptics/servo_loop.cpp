@@ -241,6 +241,8 @@ void ServoLoop::physics_step(double t) noexcept {
   s.device_position = d.position;
   s.force = d.force;
   s.tissue_force = m_contacts.wrench(m_instrument).force;
+  s.step_time = std::chrono::duration<double>(Clock::now() - start).count();
+  s.advanced = report.advanced();
   m_snapshots.publish();
 
   const auto end = Clock::now();
