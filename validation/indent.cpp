@@ -36,6 +36,7 @@
 #include "fsm/builder/scene.hpp"
 #include "fsm/fsm.hpp"
 #include "fsm/volume_term.hpp"
+#include "fsm_support/cli.hpp"
 
 namespace {
 
@@ -58,64 +59,54 @@ struct Args {
 };
 
 [[noreturn]] void usage(const std::string& why) {
-  std::fprintf(stderr,
-               "fsm-indent: %s\n"
-               "usage: fsm-indent SCENE.json --case compression|punch|sphere|cylinder [--law "
-               "links|continuum] [--nu NU] [--depth MM] [--speed MM_PER_MIN] [--samples N] [--dt "
-               "S] [--integrator NAME] [--stiffness-scale F] [--poisson NU | --kappa PA] "
-               "[--density-scale F] [--out CSV]\n",
-               why.c_str());
+  std::fprintf(stderr, "fsm-indent: %s\nRun with --help for more information.\n", why.c_str());
   std::exit(2);
 }
 
 Args parse(int argc, char** argv) {
   Args a;
-  for (int i = 1; i < argc; ++i) {
-    const std::string k = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) usage("missing value after " + k);
-      return argv[++i];
-    };
-    if (k == "--case")
-      a.load_case = value();
-    else if (k == "--law")
-      a.law = value();
-    else if (k == "--nu")
-      a.nu = std::atof(value().c_str());
-    else if (k == "--depth")
-      a.depth = std::atof(value().c_str()) * 1e-3;
-    else if (k == "--speed")
-      a.speed = std::atof(value().c_str()) * 1e-3 / 60;
-    else if (k == "--samples")
-      a.samples = std::atoi(value().c_str());
-    else if (k == "--dt")
-      a.dt = std::atof(value().c_str());
-    else if (k == "--dt-fraction")
-      a.dt_fraction = std::atof(value().c_str());
-    else if (k == "--integrator")
-      a.integrator = value();
-    else if (k == "--stiffness-scale")
-      a.stiffness_scale = std::atof(value().c_str());
-    else if (k == "--poisson")
-      a.poisson = std::atof(value().c_str());
-    else if (k == "--kappa")
-      a.kappa = std::atof(value().c_str());
-    else if (k == "--density-scale")
-      a.density_scale = std::atof(value().c_str());
-    else if (k == "--out")
-      a.out = value();
-    else if (k == "--help" || k == "-h")
-      usage("help");
-    else if (!k.empty() && k[0] == '-')
-      usage("unknown option " + k);
-    else
-      a.scene = k;
-  }
-  if (a.scene.empty()) usage("no scene");
-  if (a.load_case != "compression" && a.load_case != "punch" && a.load_case != "sphere" &&
-      a.load_case != "cylinder")
-    usage("bad --case " + a.load_case);
-  if (a.law != "links" && a.law != "continuum") usage("bad --law " + a.law);
+  CLI::App app(
+      "The paper's indentation experiment on a one-part scene: a displacement-controlled "
+      "tool presses the block; prints a JSON summary (docs/validation.md).",
+      "fsm-indent");
+  fsm::support::add_version_flag(app);
+  double depth_mm = a.depth * 1e3, speed_mm_min = a.speed * 1e3 * 60;
+  app.add_option("scene", a.scene, "a one-part scene (JSON)")->required();
+  app.add_option("--case", a.load_case, "the load")
+      ->check(CLI::IsMember({"compression", "punch", "sphere", "cylinder"}))
+      ->capture_default_str();
+  app.add_option("--law", a.law, "force law")
+      ->check(CLI::IsMember({"links", "continuum"}))
+      ->capture_default_str();
+  app.add_option("--nu", a.nu, "Poisson's ratio of the continuum law")->capture_default_str();
+  app.add_option("--depth", depth_mm, "indentation depth (mm)")
+      ->check(fsm::support::positive_number())
+      ->capture_default_str();
+  app.add_option("--speed", speed_mm_min, "tool speed (mm/min)")
+      ->check(fsm::support::positive_number())
+      ->capture_default_str();
+  app.add_option("--samples", a.samples, "force samples along the depth")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--dt", a.dt, "time step (s)")
+      ->check(fsm::support::positive_number())
+      ->capture_default_str();
+  app.add_option("--dt-fraction", a.dt_fraction,
+                 "> 0: the step is this fraction of the stable step, capped at --dt");
+  app.add_option("--integrator", a.integrator, "integrator name")
+      ->check(CLI::IsMember(fsm::integrator_names()))
+      ->capture_default_str();
+  app.add_option("--stiffness-scale", a.stiffness_scale, "a factor on the link stiffness")
+      ->check(fsm::support::positive_number());
+  app.add_option("--poisson", a.poisson, "link law: a volume term for this Poisson's ratio");
+  app.add_option("--kappa", a.kappa, "link law: a volume term of this bulk modulus (Pa)");
+  app.add_option("--density-scale", a.density_scale, "a factor on the density (mass scaling)")
+      ->check(fsm::support::positive_number());
+  app.add_option("--out", a.out, "write the force-displacement curve as CSV");
+  if (const int status = fsm::support::parse_command_line(app, argc, argv); status >= 0)
+    std::exit(status);
+  a.depth = depth_mm * 1e-3;
+  a.speed = speed_mm_min * 1e-3 / 60;
   if (a.law == "continuum" && (a.poisson > 0 || a.kappa > 0))
     usage("the volume term (--poisson, --kappa) is for the link law; give --nu");
   if (!(a.depth > 0) || !(a.speed > 0) || !(a.dt > 0) || a.samples < 1 ||

@@ -8,17 +8,19 @@
 #include <string>
 
 #include "fsm/builder/uterus_generator.hpp"
+#include "fsm_support/cli.hpp"
 
 int main(int argc, char** argv) {
-  if (argc != 2 || std::string(argv[1]) == "-h" || std::string(argv[1]) == "--help") {
-    std::fprintf(argc == 2 ? stdout : stderr,
-                 "usage: make-uterus OUTPUT_DIR\n"
-                 "Writes the procedural uterus (body, fibroid, ovaries, ovarian ligaments,\n"
-                 "fallopian tubes) as OBJ surfaces in cm and the scene OUTPUT_DIR/uterus.json.\n");
-    return argc == 2 ? 0 : 2;
-  }
+  CLI::App app(
+      "Writes the procedural uterus (body, fibroid, ovaries, ovarian ligaments, fallopian "
+      "tubes) as OBJ surfaces in cm and the scene OUTPUT_DIR/uterus.json.",
+      "make-uterus");
+  fsm::support::add_version_flag(app);
+  std::string directory;
+  app.add_option("OUTPUT_DIR", directory, "where to write the meshes and the scene")->required();
+  if (const int status = fsm::support::parse_command_line(app, argc, argv); status >= 0)
+    return status;
   try {
-    const std::string directory = argv[1];
     const fsm::build::UterusShape shape;
     const std::string scene = fsm::build::write_uterus_scene(directory, shape);
     // write_uterus_scene() generates the same (deterministic) meshes; generate them again to
