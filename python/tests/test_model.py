@@ -68,3 +68,22 @@ def test_builder_errors_and_mesh_checks(tmp_path):
     assert report["volume"] == pytest.approx(0.861e-6, rel=0.01)
     report = build.inspect_mesh(v, f[:-3])
     assert report["boundary_edges"] > 0 and not report["bounds_a_volume"]
+
+
+def test_read_mesh_takes_glb_nodes(tmp_path):
+    """fsm.build.read_mesh reads glTF nodes (the tutorial's two-node GLB), under their transforms."""
+    import subprocess
+    import sys
+
+    glb = tmp_path / "organ.glb"
+    subprocess.run([sys.executable, os.path.join(SOURCE, "examples", "tutorial", "make_organ_glb.py"),
+                    str(glb)], check=True, capture_output=True)
+    organ_v, organ_f = build.read_mesh(str(glb), 1.0, ["organ"])
+    duct_v, duct_f = build.read_mesh(str(glb), 1.0, ["duct"])
+    all_v, all_f = build.read_mesh(str(glb))
+    assert len(all_f) == len(organ_f) + len(duct_f)
+    np.testing.assert_allclose(organ_v.max(axis=0), (0.030, 0.020, 0.015), rtol=1e-6)
+    # The duct's node translates it 50 mm along x: it spans 25-75 mm.
+    np.testing.assert_allclose([duct_v[:, 0].min(), duct_v[:, 0].max()], [0.025, 0.075], rtol=1e-6)
+    with pytest.raises(fsm.Error, match="no such node"):
+        build.read_mesh(str(glb), 1.0, ["liver"])
