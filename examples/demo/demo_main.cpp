@@ -157,40 +157,21 @@ int main(int argc, char** argv) {
     tool.shape = collision::CapsuleShape<double>{shaft_r, half};
     const Index k = contacts.add_instrument(tool);
 
-    // The bundled uterus keeps its session order; any other model has each of its parts probed
-    // in the order the model lists them.
-    const std::vector<std::string> bundled = {"body",          "fibroid",       "ovary_left",
-                                              "ovary_right",   "tube_left",     "tube_right",
-                                              "ligament_left", "ligament_right"};
-    const bool is_bundled = std::all_of(bundled.begin(), bundled.end(), [&](const std::string& n) {
-      return std::any_of(model.parts.begin(), model.parts.end(),
-                         [&](const Part& p) { return p.name == n; });
-    });
-    std::vector<std::string> visit;
-    if (is_bundled) {
-      visit = bundled;
-    } else {
-      for (const Part& p : model.parts) visit.push_back(p.name);
-    }
-    if (visit.empty()) throw Error(source, "fsm-demo", "the model has no part to probe");
+    // The bundled uterus keeps its session; any other model has each of its parts probed.
+    const std::vector<support::ProbeStop> visit = support::probing_plan(model);
     std::vector<Waypoint> script;
     double t = 0;
     const double slot = (args.seconds - 1.0) / double(visit.size());
     {
       const support::ProbeTarget first =
-          support::probe_target(model, model.part(visit[0]), shaft_r, half, 0.003);
+          support::probe_target(model, *visit.front().part, shaft_r, half, 0.003);
       script.push_back({0.0, first.away, first.orientation, 0});
       t = 1.0;  // settle under gravity
       script.push_back({t, first.away, first.orientation, 0});
     }
-    for (const std::string& part : visit) {
-      // Press 4 mm into the bulky parts (the bundled body and fibroid, any tetrahedral part of
-      // another model), 2.5 mm into the rest.
-      const Part& p = model.part(part);
-      const bool bulky =
-          is_bundled ? (part == "body" || part == "fibroid") : p.topology == Topology::tetrahedral;
+    for (const support::ProbeStop& stop : visit) {
       const support::ProbeTarget tg =
-          support::probe_target(model, p, shaft_r, half, bulky ? 0.004 : 0.0025);
+          support::probe_target(model, *stop.part, shaft_r, half, stop.depth);
       script.push_back({t + 0.25 * slot, tg.away, tg.orientation, 0});
       script.push_back({t + 0.5 * slot, tg.pressed, tg.orientation, 1});
       script.push_back({t + 0.7 * slot, tg.pressed, tg.orientation, 1});
@@ -357,7 +338,8 @@ int main(int argc, char** argv) {
       std::printf("%s\n", json);
     } else {
       std::string probed;
-      for (const std::string& part : visit) probed += (probed.empty() ? "" : ", ") + part;
+      for (const support::ProbeStop& stop : visit)
+        probed += (probed.empty() ? "" : ", ") + stop.part->name;
       std::printf("session: %.1f s simulated, every part probed (%s)\n", snap.time, probed.c_str());
       std::printf(
           "  whole frame (physics 1/60 s at 1 kHz + contacts + skinning): min %.0f Hz, median %.0f "

@@ -142,15 +142,14 @@ TissueModel<double> build_scene(const std::string& scene) {
 std::vector<Waypoint> probe_script(const TissueModel<double>& model) {
   std::vector<Waypoint> script;
   const double slot = 2.5, total = 600;
+  const std::vector<support::ProbeStop> plan = support::probing_plan(model);
   const support::ProbeTarget first =
-      support::probe_target(model, model.parts.front(), kShaftRadius, kHalfLength, 0.003);
+      support::probe_target(model, *plan.front().part, kShaftRadius, kHalfLength, 0.003);
   script.push_back({0.0, first.away, first.orientation, 0});
   for (double t = 0; t < total;) {
-    for (const Part& p : model.parts) {
-      if (p.num_nodes == 0) continue;
-      const double depth = p.name == "body" || p.name == "fibroid" ? 0.004 : 0.0025;
+    for (const support::ProbeStop& stop : plan) {
       const support::ProbeTarget tg =
-          support::probe_target(model, p, kShaftRadius, kHalfLength, depth);
+          support::probe_target(model, *stop.part, kShaftRadius, kHalfLength, stop.depth);
       script.push_back({t + 0.25 * slot, tg.away, tg.orientation, 0});
       script.push_back({t + 0.5 * slot, tg.pressed, tg.orientation, 1});
       script.push_back({t + 0.7 * slot, tg.pressed, tg.orientation, 1});
@@ -471,7 +470,6 @@ class Panel {
     ++applied;
     if (r.pause) paused = true;
     if (r.resume) paused = false;
-    if (r.reset) m_last_time = -1;
   }
 
  private:

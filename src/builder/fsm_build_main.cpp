@@ -45,10 +45,8 @@ int main(int argc, char** argv) {
     builder.set_limits(limits);
     if (!quiet)
       builder.set_progress([](const std::string& part, const std::string& stage, double f) {
-        static double shown = 0;  // the builder's fractions only grow; never print one going back
-        shown = f > shown ? f : shown;
-        std::fprintf(stderr, "[%3.0f%%] %s%s%s\n", 100 * shown, part.c_str(),
-                     part.empty() ? "" : ": ", stage.c_str());
+        std::fprintf(stderr, "[%3.0f%%] %s%s%s\n", 100 * f, part.c_str(), part.empty() ? "" : ": ",
+                     stage.c_str());
       });
     const fsm::TissueModel<double> model = builder.build();
     fsm::save_model(output, model);

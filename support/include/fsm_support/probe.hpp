@@ -7,6 +7,7 @@
 /// programs around the library, not part of it).
 
 #include <string>
+#include <vector>
 
 #include "fsm/collision/contact.hpp"
 #include "fsm/tissue_model.hpp"
@@ -100,6 +101,43 @@ inline ProbeTarget probe_target(const TissueModel<double>& model, const Part& p,
   t.pressed = probe.position(depth);
   t.away = t.pressed + probe.site.outward * retreat;
   return t;
+}
+
+/// @brief One stop of a scripted probing session: a part and how deep to press it (m).
+struct ProbeStop {
+  const Part* part;
+  double depth;
+};
+
+/// @brief The parts a scripted session (fsm-demo, fsm-viewer --scripted) probes, in order, and
+/// how deep. The bundled uterus: its session order, 4 mm into the body and the fibroid, 2.5 mm into
+/// the rest. Any other model: each part with spheres in the model's order, 4 mm into tetrahedral
+/// parts, 2.5 mm into the rest. fsm::Error when there is no part to probe.
+inline std::vector<ProbeStop> probing_plan(const TissueModel<double>& model) {
+  static const char* const bundled[] = {"body",          "fibroid",       "ovary_left",
+                                        "ovary_right",   "tube_left",     "tube_right",
+                                        "ligament_left", "ligament_right"};
+  auto find = [&](const std::string& name) -> const Part* {
+    for (const Part& p : model.parts)
+      if (p.name == name && p.num_nodes > 0) return &p;
+    return nullptr;
+  };
+  std::vector<ProbeStop> plan;
+  for (const char* name : bundled) {
+    const Part* p = find(name);
+    if (p == nullptr) {
+      plan.clear();
+      break;
+    }
+    const std::string n = name;
+    plan.push_back({p, n == "body" || n == "fibroid" ? 0.004 : 0.0025});
+  }
+  if (plan.empty())
+    for (const Part& p : model.parts)
+      if (p.num_nodes > 0)
+        plan.push_back({&p, p.topology == Topology::tetrahedral ? 0.004 : 0.0025});
+  if (plan.empty()) throw Error("", "model '" + model.name + "'", "has no part to probe");
+  return plan;
 }
 
 }  // namespace fsm::support
