@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "fsm/fsm.hpp"
+#include "scratch_dir.hpp"
 
 namespace fsm {
 namespace {
@@ -30,8 +31,7 @@ std::size_t count(const std::string& text, const std::string& what) {
 class VtkExport : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir = fs::temp_directory_path() / "fsm_vtk_export_test";
-    fs::remove_all(dir);
+    dir = test::scratch_dir("fsm_vtk_export");
     Material<double> tissue;
     tissue.density = 1050;
     tissue.youngs_modulus = 13150;

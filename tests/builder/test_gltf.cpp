@@ -13,6 +13,7 @@
 #include "fsm/builder/builder.hpp"
 #include "fsm/builder/mesh_io.hpp"
 #include "fsm/model_file.hpp"
+#include "../scratch_dir.hpp"
 #include "shapes.hpp"
 
 namespace fsm::build {
@@ -98,9 +99,7 @@ struct Glb {
 class Gltf : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir = fs::temp_directory_path() / "fsm_test_gltf";
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+    dir = test::scratch_dir("fsm_test_gltf");
     // A unit-radius icosphere quantised to 1/1024 (exact in float, and after the node transforms
     // below, so the GLB and the OBJ hold the very same numbers).
     ball = test::icosphere(1.0, 3);

@@ -10,6 +10,7 @@
 
 #include "fsm/builder/builder.hpp"
 #include "fsm/fsm.hpp"
+#include "../scratch_dir.hpp"
 
 namespace fsm::build {
 namespace {
@@ -33,12 +34,12 @@ TEST(VhfPelvis, LeftAdnexaBuildsEndToEnd) {
     if (part.contains("meshes"))
       for (auto& m : part["meshes"]) fix(m);
   }
-  const fs::path tmp = fs::temp_directory_path() / "fsm_vhf_scene.json";
+  const fs::path tmp = test::scratch_dir("fsm_vhf") / "scene.json";
   std::ofstream(tmp) << scene.dump(2);
 
   BuildReport report;
   const TissueModel<double> model = build_model(tmp.string(), &report);
-  fs::remove(tmp);
+  fs::remove_all(tmp.parent_path());
   ASSERT_EQ(model.parts.size(), 5u);
   const Part& uterus = model.part("uterus");
   EXPECT_GT(uterus.num_nodes, 100);
