@@ -9,6 +9,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <limits>
 #include <optional>
@@ -686,12 +687,15 @@ Soup parse_ply(std::string_view bytes, const std::string& file) {
     need += static_cast<long double>(e.count) * static_cast<long double>(per);
   }
   if (format == 0) need -= 1;  // the last value may lack its separator
-  if (need > static_cast<long double>(d.remaining()))
+  if (need > static_cast<long double>(d.remaining())) {
+    // The need can exceed any integer type (counts up to 2^64 times several bytes).
+    char needed[64];
+    std::snprintf(needed, sizeof needed, "%.0Lf", need);
     throw Error(file, "",
-                "the header declares elements needing at least " +
-                    std::to_string(static_cast<unsigned long long>(need)) +
+                std::string("the header declares elements needing at least ") + needed +
                     " bytes, the data has " + std::to_string(d.remaining()) +
                     " (truncated, or the counts are wrong)");
+  }
 
   Soup soup;
   bool have_vertices = false, have_faces = false;
