@@ -211,6 +211,118 @@ TEST(ContactSolver, PartContactStartsAtTheRestConfiguration) {
   EXPECT_LT(f.colwise().sum().norm(), 1e-12);
 }
 
+// The onset of the contact law (PenaltyContact::onset): without it the plain penalty; with it
+// s = d^2 / 2e below e and d - e/2 beyond, continuous with its slope at 0 and at e; the damping
+// ramps in with the slope, so a contact that barely touches neither pushes nor pulls hard. The
+// stiffness matrix holds its slope (checked against central differences of the forces).
+TEST(ContactLaw, OnsetIsContinuousWithItsSlopeAndMatchesTheStiffnessMatrix) {
+  PenaltyContact<double> c;
+  c.node = 0;
+  c.normal = V3::UnitZ();
+  c.node_start = V3::Zero();
+  c.stiffness = 200;
+  c.damping = 0.3;
+  c.friction_speed = 1e-3;
+  auto force = [&](double depth, double vn, double onset) {
+    c.depth = depth;
+    c.onset = onset;
+    const double x[3] = {0, 0, 0}, v[3] = {0, 0, vn};  // vn < 0: moving into the tool
+    double fn;
+    V3 slip;
+    return fsm::detail::contact_force(c, x, v, 0.0, fn, slip).z();
+  };
+  const double e = 1e-4;
+  for (double d : {-1e-4, 0.0, 3e-5, 2e-4})  // no onset: k d (clamped at zero), damping at once
+    EXPECT_DOUBLE_EQ(force(d, -0.01, 0), std::max(0.0, 200 * d + 0.3 * 0.01));
+  EXPECT_EQ(force(-1e-6, -0.01, e), 0.0);  // not touching: nothing, however fast it comes
+  EXPECT_NEAR(force(5e-5, 0, e), 200 * 5e-5 * 5e-5 / (2 * e), 1e-15);
+  EXPECT_NEAR(force(3e-4, 0, e), 200 * (3e-4 - e / 2), 1e-15);
+  // Continuity of the force and of its slope at 0 and at e.
+  const double eps = 1e-10;
+  for (double at : {0.0, e}) {
+    EXPECT_NEAR(force(at - eps, 0, e), force(at + eps, 0, e), 1e-7);
+    const double left = (force(at, 0, e) - force(at - eps, 0, e)) / eps;
+    const double right = (force(at + eps, 0, e) - force(at, 0, e)) / eps;
+    EXPECT_NEAR(left, right, 200 * 1e-4);
+  }
+  // The stiffness matrix of a force model with one such contact, against central differences.
+  SphereModel<double> m;
+  m.add_region("r", tissue<double>());
+  m.add_node(V3::Zero(), 0.001, 1e-4, 0);
+  ForceModel<double> fm(m);
+  fm.reserve_contacts(1);
+  for (double d : {2e-5, 7e-5, 4e-4}) {
+    c.depth = d;
+    c.onset = e;
+    fm.clear_contacts();
+    ASSERT_TRUE(fm.add_contact(c));
+    const Eigen::MatrixXd K = Eigen::MatrixXd(fm.stiffness_matrix(m, JacobianForm::definite));
+    Positions<double> x = m.positions(), f(1, 3);
+    const double step = 1e-9;
+    x(0, 2) = step;
+    fm.evaluate(m, x, m.velocities(), f);
+    const double fp = f(0, 2);
+    x(0, 2) = -step;
+    fm.evaluate(m, x, m.velocities(), f);
+    const double fd = (fp - f(0, 2)) / (2 * step);
+    EXPECT_NEAR(K(2, 2), fd, 1e-6 * 200) << "depth " << d;
+    EXPECT_NEAR(K(2, 2), -200 * std::min(d / e, 1.0), 1e-9) << "depth " << d;
+  }
+}
+
+// Parts that touch at rest sit at their contact's threshold. A block resting on a fixed block under
+// gravity is carried by part contacts alone. With the default onset the contacts still carry its
+// weight, steadily, and let it sink at most half the onset deeper than the plain penalty does (the
+// law past the onset is the plain one shifted by half the onset).
+TEST(ContactSolver, PartsTouchingAtRestCarryTheWeightWithTheOnset) {
+  auto run = [](double onset) {
+    SphereModel<double> m = block<double>({3, 3, 1}, 0.004);
+    const Index n = m.num_nodes();
+    for (Index i = 0; i < n; ++i) m.set_fixed(i);
+    const Index top = m.add_region("top", tissue<double>());
+    const TetrahedralMesh<double> lattice =
+        make_cube_lattice<double>(V3(0, 0, 0.0035), Eigen::Vector3i(3, 3, 1), 0.004);
+    add_tetrahedral_part(m, lattice, top, 0.002);  // 0.5 mm into the fixed block's top layer
+    Simulation<double>::Options o;
+    o.forces.drag = 5;
+    Simulation<double> sim(m, o);
+    ContactOptions<double> co;
+    co.part_contact_onset = onset;
+    ContactSolver<double> solver(sim.model(), sim.forces(), co);
+    double weight = 0;
+    for (Index i = n; i < sim.model().num_nodes(); ++i) weight += sim.model().masses()[i] * 9.81;
+    std::vector<double> carried;
+    for (int s = 0; s < 600; ++s) {
+      solver.compute(sim.model(), sim.forces());
+      EXPECT_TRUE(sim.step(1e-3).advanced());
+      solver.collect(sim.forces());
+      if (s < 400) continue;
+      double fz = 0;  // contact force on the upper block
+      for (Index k = 0; k < solver.num_contacts(); ++k) {
+        const Contact<double>& c = solver.contacts()[k];
+        if (c.other < 0) continue;
+        fz += (c.sphere >= n ? 1.0 : -1.0) * c.force.z();
+      }
+      carried.push_back(fz / weight);
+    }
+    double mean = 0, worst = 0;
+    for (double r : carried) mean += r / double(carried.size());
+    for (double r : carried) worst = std::max(worst, std::abs(r - mean));
+    const auto x = sim.model().positions().bottomRows(sim.model().num_nodes() - n);
+    const auto x0 = sim.model().rest_positions().bottomRows(sim.model().num_nodes() - n);
+    const double sink = (x0.col(2) - x.col(2)).mean();
+    return std::make_tuple(mean, worst, sink);
+  };
+  const double onset = ContactOptions<double>().part_contact_onset;
+  const auto [mean, worst, sink] = run(onset);
+  const auto [plain_mean, plain_worst, plain_sink] = run(0.0);
+  EXPECT_NEAR(mean, 1.0, 0.02);
+  EXPECT_LT(worst, 0.02);
+  EXPECT_NEAR(plain_mean, 1.0, 0.02);
+  EXPECT_GT(sink, plain_sink);
+  EXPECT_LT(sink - plain_sink, 0.5 * onset * 0.0035 + 1e-6);  // threshold: the 3.5 mm rest distance
+}
+
 // A layer of 5 mm spheres (a linked sheet held at its rim) and a 2 mm ball moving through it at
 // 0.5 m/s, stepped at 1 kHz: 0.5 mm per step, a tenth of a sphere. No sphere may pass through the
 // ball: penetration stays below the sphere radius at every step; with position projection it stays

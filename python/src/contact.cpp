@@ -119,12 +119,15 @@ instrument; what a haptic device renders (its negative is what the instrument ap
 
 ContactOptions(stiffness_ratio=100, damping_ratio=0.5, friction_speed=1e-3,
                tetrahedral_surface=True, part_contact=True, self_contact=False, part_friction=0,
-               max_contacts=4096, spatial_hash=True, verlet_skin=0.002, part_stiffness_ratio=1)
+               max_contacts=4096, spatial_hash=True, verlet_skin=0.002, part_stiffness_ratio=1,
+               part_contact_onset=0.1)
 
 stiffness_ratio: penalty stiffness as a multiple of the sphere's own tissue stiffness (the row sum
 of its links' and elements' rest stiffness), so the penetration is a fixed small share of the
 deformation at any resolution. part_stiffness_ratio: the same between parts (default 1: as stiff
-as the tissue; parts touching at rest sit at the threshold). damping_ratio zeta: contact damping c = 2 zeta sqrt(k m).
+as the tissue; parts touching at rest sit at the threshold). part_contact_onset: the fraction of
+a part contact's threshold over which its force ramps in (quadratically; 0: the plain penalty).
+damping_ratio zeta: contact damping c = 2 zeta sqrt(k m).
 friction_speed (m/s): regularisation of Coulomb friction. tetrahedral_surface: vertices of
 tetrahedra (on the organ's surface) meet instruments at their centres, other spheres at their
 radius; False: every sphere at its radius (the paper's contact). part_contact: spheres of different
@@ -135,8 +138,9 @@ pair list. Validated when a ContactSolver is made.)")
       .def(py::init([](Scalar stiffness_ratio, Scalar damping_ratio, Scalar friction_speed,
                        bool tetrahedral_surface, bool part_contact, bool self_contact,
                        Scalar part_friction, Index max_contacts, bool spatial_hash,
-                       Scalar verlet_skin, Scalar part_stiffness_ratio) {
+                       Scalar verlet_skin, Scalar part_stiffness_ratio, Scalar part_contact_onset) {
              Options o;
+             o.part_contact_onset = part_contact_onset;
              o.stiffness_ratio = stiffness_ratio;
              o.part_stiffness_ratio = part_stiffness_ratio;
              o.damping_ratio = damping_ratio;
@@ -155,11 +159,13 @@ pair list. Validated when a ContactSolver is made.)")
            py::arg("part_contact") = true, py::arg("self_contact") = false,
            py::arg("part_friction") = 0.0, py::arg("max_contacts") = 4096,
            py::arg("spatial_hash") = true, py::arg("verlet_skin") = 0.002,
-           py::arg("part_stiffness_ratio") = 1.0)
+           py::arg("part_stiffness_ratio") = 1.0, py::arg("part_contact_onset") = 0.1)
       .def_readwrite("stiffness_ratio", &Options::stiffness_ratio,
                      "contact stiffness / the sphere's tissue stiffness")
       .def_readwrite("part_stiffness_ratio", &Options::part_stiffness_ratio,
                      "part contact stiffness / the softer sphere's tissue stiffness")
+      .def_readwrite("part_contact_onset", &Options::part_contact_onset,
+                     "fraction of a part contact's threshold over which its force ramps in")
       .def_readwrite("damping_ratio", &Options::damping_ratio, "zeta in c = 2 zeta sqrt(k m)")
       .def_readwrite("friction_speed", &Options::friction_speed, "m/s")
       .def_readwrite("tetrahedral_surface", &Options::tetrahedral_surface,

@@ -145,11 +145,33 @@ Scalar contact_depth(const PenaltyContact<Scalar>& c, const Scalar* x,
   return c.depth - c.normal.dot(d) + extra_depth;
 }
 
+// The onset of a contact's normal law at penetration `depth`: s(depth), with its slope s'. Without
+// an onset (0) the plain penalty s = depth, s' = 1 (for any depth: the linear law the implicit
+// step takes may be evaluated where it no longer penetrates).
+template <typename Scalar>
+Scalar contact_onset(Scalar depth, Scalar onset, Scalar& slope) noexcept {
+  if (!(onset > Scalar(0))) {
+    slope = Scalar(1);
+    return depth;
+  }
+  if (!(depth > Scalar(0))) {
+    slope = Scalar(0);
+    return Scalar(0);
+  }
+  if (depth < onset) {
+    slope = depth / onset;
+    return Scalar(0.5) * depth * slope;
+  }
+  slope = Scalar(1);
+  return depth - Scalar(0.5) * onset;
+}
+
 // The force on `node` at (x, v) in the tangent-plane model, the instrument moved by
 // `extra_depth` along the normal; fn gets the normal force, slip the tangential relative velocity.
-// Clamped, the normal force never pulls (k depth - c v_n below zero gives zero). Unclamped, it is
-// the linear law the implicit step takes for a contact that penetrates at the step's start (its
-// damping may pull for that step); the friction always uses the clamped normal force.
+// Clamped, the normal force never pulls (k s(depth) - c s'(depth) v_n below zero gives zero).
+// Unclamped, it is the law the implicit step takes for a contact that penetrates at the step's
+// start: linear, linearised at `solve_depth` (the plain penalty is linear already; its damping
+// may pull for that step); the friction always uses the clamped normal force.
 template <typename Scalar>
 Vector3<Scalar> contact_force(const PenaltyContact<Scalar>& c, const Scalar* x, const Scalar* v,
                               Scalar extra_depth, Scalar& fn, Vector3<Scalar>& slip,
@@ -158,12 +180,28 @@ Vector3<Scalar> contact_force(const PenaltyContact<Scalar>& c, const Scalar* x, 
   contact_kinematics(c, x, v, d, u);
   const Scalar depth = c.depth - c.normal.dot(d) + extra_depth;
   const Scalar vn = c.normal.dot(u);
-  const Scalar linear = c.stiffness * depth - c.damping * vn;
-  fn = std::max(Scalar(0), linear);
+  Scalar slope;
+  const Scalar s = contact_onset(depth, c.onset, slope);
+  const Scalar law = c.stiffness * s - c.damping * slope * vn;
+  fn = std::max(Scalar(0), law);
+  Scalar linear = law;
+  if (!clamp && c.onset > Scalar(0)) {
+    Scalar slope0;
+    const Scalar s0 = contact_onset(c.solve_depth, c.onset, slope0);
+    linear = c.stiffness * (s0 + slope0 * (depth - c.solve_depth)) - c.damping * slope0 * vn;
+  }
   slip = u - vn * c.normal;
-  const Scalar s = std::sqrt(slip.squaredNorm() + c.friction_speed * c.friction_speed);
-  const Vector3<Scalar> F = (clamp ? fn : linear) * c.normal - (c.friction * fn / s) * slip;
+  const Scalar r = std::sqrt(slip.squaredNorm() + c.friction_speed * c.friction_speed);
+  const Vector3<Scalar> F = (clamp ? fn : linear) * c.normal - (c.friction * fn / r) * slip;
   return F.allFinite() ? F : Vector3<Scalar>::Zero();
+}
+
+// The slope s' of the onset at `depth` (1 for the plain penalty).
+template <typename Scalar>
+Scalar contact_slope(const PenaltyContact<Scalar>& c, Scalar depth) noexcept {
+  Scalar slope;
+  (void)contact_onset(depth, c.onset, slope);
+  return slope;
 }
 
 // How far an instrument contact's surface has advanced along its normal after time t.
@@ -243,14 +281,16 @@ void ForceModel<Scalar>::add_contact_linearisation(const SphereModel<Scalar>& mo
   for (Index k = 0; k < m_num_contacts; ++k) {
     PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
     const Scalar adv = detail::surface_advance(c, m_contact_time);
-    c.in_solve = detail::contact_depth(c, x, adv) > Scalar(0);
+    c.solve_depth = detail::contact_depth(c, x, adv);
+    c.in_solve = c.solve_depth > Scalar(0);
     if (!c.in_solve) continue;
     Scalar fn;
     Vector3<Scalar> slip;
     // h (F_linear - F_clamped): evaluate() clamped the force the rhs holds.
     Vector3<Scalar> r = h * (detail::contact_force(c, x, v, adv, fn, slip, false) -
                              detail::contact_force(c, x, v, adv, fn, slip));
-    if (c.other < 0) r += h * h * c.stiffness * c.normal.dot(c.surface_velocity) * c.normal;
+    const Scalar kt = c.stiffness * detail::contact_slope(c, c.solve_depth);
+    if (c.other < 0) r += h * h * kt * c.normal.dot(c.surface_velocity) * c.normal;
     for (int a = 0; a < 3; ++a) {
       if (!m_immobile[std::size_t(c.node)]) rhs[3 * c.node + a] += r[a];
       if (c.other >= 0 && !m_immobile[std::size_t(c.other)]) rhs[3 * c.other + a] -= r[a];
@@ -611,17 +651,20 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
     Scalar fn;
     Vector3<Scalar> slip, d, u;
     const Scalar adv = detail::surface_advance(c, m_contact_time);
-    if (!keep_contact_set) c.in_solve = detail::contact_depth(c, x, adv) > Scalar(0);
+    c.solve_depth = detail::contact_depth(c, x, adv);
+    if (!keep_contact_set) c.in_solve = c.solve_depth > Scalar(0);
     const bool active = c.in_solve;
     const Vector3<Scalar> F = detail::contact_force(c, x, v, adv, fn, slip, false);
     detail::contact_kinematics(c, x, v, d, u);
-    c.normal_block = active ? h2 * c.stiffness + h * c.damping : Scalar(0);
+    // The law's slope at this state (1 for the plain penalty; the onset's s' otherwise).
+    const Scalar slope = detail::contact_slope(c, c.solve_depth);
+    c.normal_block = active ? slope * (h2 * c.stiffness + h * c.damping) : Scalar(0);
     c.tangent_block = active
                           ? h * c.friction * fn /
                                 std::sqrt(slip.squaredNorm() + c.friction_speed * c.friction_speed)
                           : Scalar(0);
     Vector3<Scalar> r = h * F;
-    if (active) r -= h2 * c.stiffness * c.normal.dot(u) * c.normal;
+    if (active) r -= h2 * slope * c.stiffness * c.normal.dot(u) * c.normal;
     rhs.row(c.node) += r.transpose();
     if (c.other >= 0) rhs.row(c.other) -= r.transpose();
     for (int a = 0; a < 3; ++a) {
@@ -792,8 +835,10 @@ typename ForceModel<Scalar>::SparseMatrix ForceModel<Scalar>::stiffness_matrix(
         }
     }
   };
-  contact_pairs([](const PenaltyContact<Scalar>& c, Scalar, const Vector3<Scalar>&) {
-    return Matrix3<Scalar>(c.stiffness * c.normal * c.normal.transpose());
+  contact_pairs([&](const PenaltyContact<Scalar>& c, Scalar, const Vector3<Scalar>&) {
+    const Scalar slope =
+        detail::contact_slope(c, detail::contact_depth(c, x, detail::surface_advance(c, m_contact_time)));
+    return Matrix3<Scalar>(slope * c.stiffness * c.normal * c.normal.transpose());
   });
   if (!m_continuum.empty()) {
     detail::ContinuumTerm<Scalar> elements = m_continuum;  // its scratch is used
@@ -857,7 +902,8 @@ typename ForceModel<Scalar>::SparseMatrix ForceModel<Scalar>::damping_matrix(
     const Scalar ct =
         c.friction * fn / std::sqrt(slip.squaredNorm() + c.friction_speed * c.friction_speed);
     const Matrix3<Scalar> nn = c.normal * c.normal.transpose();
-    const Matrix3<Scalar> B = c.damping * nn + ct * (Matrix3<Scalar>::Identity() - nn);
+    const Scalar slope = detail::contact_slope(c, detail::contact_depth(c, xp, adv));
+    const Matrix3<Scalar> B = slope * c.damping * nn + ct * (Matrix3<Scalar>::Identity() - nn);
     for (int r = 0; r < 3; ++r)
       for (int s = 0; s < 3; ++s) {
         trip.emplace_back(3 * c.node + r, 3 * c.node + s, -B(r, s));

@@ -24,7 +24,7 @@ void ImplicitEulerIntegrator<Scalar>::precondition() noexcept {
     m_z = m_r.cwiseQuotient(m_diag);
     return;
   }
-  const Index n = m_r.rows();
+  const Index n = Index(m_r.rows());
   for (Index i = 0; i < n; ++i) {
     const Scalar* B = &m_pblocks[6 * std::size_t(i)];
     const Scalar rx = m_r(i, 0), ry = m_r(i, 1), rz = m_r(i, 2);

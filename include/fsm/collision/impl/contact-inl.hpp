@@ -18,13 +18,13 @@ ContactSolver<Scalar>::ContactSolver(const SphereModel<Scalar>& model,
   if (!(o.stiffness_ratio > 0) || !std::isfinite(o.stiffness_ratio) ||
       !(o.part_stiffness_ratio > 0) || !std::isfinite(o.part_stiffness_ratio) ||
       !(o.damping_ratio >= 0) || !std::isfinite(o.damping_ratio) || !(o.friction_speed > 0) ||
-      !(o.part_friction >= 0) || o.max_contacts < 1 || !(o.verlet_skin >= 0) ||
+      !(o.part_friction >= 0) || !(o.part_contact_onset >= 0) || !(o.part_contact_onset < 1) || o.max_contacts < 1 || !(o.verlet_skin >= 0) ||
       !std::isfinite(o.verlet_skin))
     throw Error("", "contact options",
                 "stiffness_ratio, part_stiffness_ratio and friction_speed must be positive, "
                 "damping_ratio and "
-                "part_friction non-negative, verlet_skin finite and non-negative, max_contacts "
-                "at least 1");
+                "part_friction non-negative, part_contact_onset in [0, 1), verlet_skin finite "
+                "and non-negative, max_contacts at least 1");
   refresh(model);
 }
 
@@ -205,8 +205,9 @@ void ContactSolver<Scalar>::record_and_add(const PenaltyContact<Scalar>& c) noex
     w.torque -= (c.point - m_instruments[std::size_t(c.instrument)].pose.position).cross(c.force);
     if (c.force.dot(c.normal) > Scalar(0)) {  // pushing: its normal stiffness and damping count
       const Matrix3<Scalar> nn = c.normal * c.normal.transpose();
-      w.stiffness += c.stiffness * nn;
-      w.damping += c.damping * nn;
+      const Scalar slope = fsm::detail::contact_slope(c, c.depth);
+      w.stiffness += slope * c.stiffness * nn;
+      w.damping += slope * c.damping * nn;
     }
   }
 }
@@ -394,6 +395,7 @@ void ContactSolver<Scalar>::part_contact(const SphereModel<Scalar>& model, Index
   pc.other = i;
   pc.normal = n;
   pc.depth = depth;
+  pc.onset = m_options.part_contact_onset * threshold;
   pc.point = x.row(i).transpose() + (radius[i] - Scalar(0.5) * depth) * n;
   pc.stiffness = std::min(m_k[std::size_t(i)], m_k[std::size_t(j)]) *
                  (m_options.part_stiffness_ratio / m_options.stiffness_ratio);
