@@ -268,7 +268,7 @@ TEST(ForceModel, DragDecaysRigidMotionExponentially) {
 }
 
 TEST(ForceModel, TwoThreadsGiveTheSameForcesAsOne) {
-  if (detail::max_threads() < 2) GTEST_SKIP() << "built without OpenMP or only one thread";
+  if (detail::max_threads() < 2) GTEST_SKIP() << "a machine with one hardware thread";
   std::mt19937 rng(17);
   SphereModel<double> model = random_model<double>(rng, {6, 5, 7}, 0.3, true);
   ForceModel<double> one = no_gravity(model, DampingModel::along_link, 1);

@@ -157,7 +157,7 @@ TEST(NoAllocation, SkinEvaluation) {
 }
 
 TEST(NoAllocation, TwoThreadsAfterWarmUp) {
-  if (detail::max_threads() < 2) GTEST_SKIP() << "built without OpenMP or only one thread";
+  if (detail::max_threads() < 2) GTEST_SKIP() << "a machine with one hardware thread";
   Simulation<double>::Options o;
   o.integrator = "heun";
   o.forces.threads = 2;

@@ -2,8 +2,14 @@
 // the force never exceeds the limit; the ramp; the watchdog zeroes the force during an injected
 // stall; a diverging simulation trips it; snapshots reach a reader thread.
 
+#include <atomic>
 #include <mutex>
 #include <thread>
+
+#if defined(__linux__)
+#include <pthread.h>
+#include <sched.h>
+#endif
 
 #include "common.hpp"
 #include "fsm/haptics/scripted_device.hpp"
@@ -234,6 +240,167 @@ TEST(ServoLoop, DecoupledThreadsRunAndStop) {
   EXPECT_GT(peak, 0.01);
 }
 
+#if defined(__linux__)
+// Whether this process may run a thread under SCHED_FIFO at `priority` (root, CAP_SYS_NICE or an
+// rtprio limit): asked of a throwaway thread.
+bool fifo_allowed(int priority) {
+  bool ok = false;
+  std::thread([&] {
+    sched_param p{};
+    p.sched_priority = priority;
+    ok = pthread_setschedparam(pthread_self(), SCHED_FIFO, &p) == 0;
+  }).join();
+  return ok;
+}
+
+// The calling thread's policy and priority.
+std::pair<int, int> scheduling() {
+  int policy = 0;
+  sched_param p{};
+  pthread_getschedparam(pthread_self(), &policy, &p);
+  return {policy, p.sched_priority};
+}
+
+// Real-time scheduling where the system grants it: the servo thread runs under SCHED_FIFO at the
+// priority asked (the step hook runs on it in lockstep), the run gives the same force curve bit
+// for bit as run_fast, stats() says whether it was granted, and run_real_time gives its caller's
+// thread its scheduling back. Where refused, the loop runs as before and says so.
+TEST(ServoLoop, RealTimePriorityIsTakenWhereGrantedAndGivenBack) {
+  const bool allowed = fifo_allowed(20);
+  const auto before = scheduling();
+  Scene fast_scene, rt_scene;
+  ScriptedHapticDevice fast_dev(probe_script()), rt_dev(probe_script());
+  ServoLoop fast(fast_scene.sim, fast_scene.contacts, fast_scene.tool, fast_dev);
+  fast.run_fast(0.8);
+  ServoOptions o;
+  o.watchdog_timeout = 0.05;
+  o.realtime_priority = 20;
+  ServoLoop rt(rt_scene.sim, rt_scene.contacts, rt_scene.tool, rt_dev, o);
+  std::atomic<int> policy{-1}, priority{-1};
+  rt.set_step_hook([&](double t) {
+    if (t == 0) {
+      const auto [pol, pri] = scheduling();
+      policy = pol;
+      priority = pri;
+    }
+  });
+  rt.run_real_time(0.8);
+  EXPECT_EQ(rt.stats().realtime, allowed);
+  if (allowed) {
+    EXPECT_EQ(policy.load(), SCHED_FIFO);
+    EXPECT_EQ(priority.load(), 20);
+  } else {
+    EXPECT_EQ(policy.load(), before.first);
+  }
+  EXPECT_EQ(scheduling(), before) << "run_real_time kept its caller's thread real-time";
+  ASSERT_EQ(rt.stats().watchdog_trips, 0u) << "the machine stalled the loop for > 50 ms";
+  const auto a = fast_dev.forces(), b = rt_dev.forces();
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t i = 0; i < a.size(); ++i) ASSERT_EQ(a[i].force, b[i].force) << "tick " << i;
+}
+
+// Decoupled, the simulation thread runs one priority below the tick.
+TEST(ServoLoop, DecoupledSimulationThreadRunsOneRealTimePriorityBelowTheTick) {
+  const bool allowed = fifo_allowed(30);
+  Scene s;
+  ScriptedHapticDevice dev(probe_script());
+  ServoOptions o;
+  o.threading = ServoOptions::Threading::decoupled;
+  o.watchdog_timeout = 0.05;
+  o.realtime_priority = 30;
+  ServoLoop loop(s.sim, s.contacts, s.tool, dev, o);
+  std::atomic<int> policy{-1}, priority{-1};
+  loop.set_step_hook([&](double t) {
+    if (t == 0) {
+      const auto [pol, pri] = scheduling();
+      policy = pol;
+      priority = pri;
+    }
+  });
+  loop.run_real_time(0.3);
+  EXPECT_EQ(loop.stats().realtime, allowed);
+  EXPECT_GE(loop.stats().ticks, 290u);
+  if (allowed) {
+    EXPECT_EQ(policy.load(), SCHED_FIFO);
+    EXPECT_EQ(priority.load(), 29);
+  }
+}
+#endif
+
+// Decoupled, the tick advances the proxy itself against the tissue's contact force linearised at
+// the last step (the local model). In free space that model is the whole model: with the
+// simulation thread stalled 40 ms while the device moves, the device feels exactly what the
+// lockstep loop gives at every tick, not a spring to a proxy frozen where the stall began
+// (which would pull back with about k_c x 0.5 mm = 0.2 N by its end).
+TEST(ServoLoop, DecoupledLocalModelCarriesTheForceThroughAStall) {
+  // Far above the block (top at 10 mm): no contact at all.
+  const std::vector<Waypoint> script{{0.0, V3(0.01, 0.01, 0.04), Eigen::Quaterniond::Identity(), 0},
+                                     {0.6, V3(0.01, 0.01, 0.03), Eigen::Quaterniond::Identity(), 0}};
+  Scene fast_scene, rt_scene;
+  ScriptedHapticDevice fast_dev(script), rt_dev(script);
+  ServoLoop fast(fast_scene.sim, fast_scene.contacts, fast_scene.tool, fast_dev);
+  fast.run_fast(0.7);
+  ServoOptions o;
+  o.threading = ServoOptions::Threading::decoupled;
+  o.watchdog_timeout = 0.2;  // the local model stands in for the late steps
+  ServoLoop rt(rt_scene.sim, rt_scene.contacts, rt_scene.tool, rt_dev, o);
+  std::atomic<bool> stalled{false};
+  rt.set_step_hook([&](double t) {
+    if (!stalled && t >= 0.3) {
+      stalled = true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(40));
+    }
+  });
+  rt.run_real_time(0.7);
+  ASSERT_TRUE(stalled.load());
+  ASSERT_EQ(rt.stats().watchdog_trips, 0u);
+  const auto a = fast_dev.forces(), b = rt_dev.forces();
+  ASSERT_EQ(a.size(), b.size());
+  double peak = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    ASSERT_EQ(a[i].time, b[i].time);
+    ASSERT_LT((a[i].force - b[i].force).norm(), 1e-12) << "tick " << i;
+    peak = std::max(peak, a[i].force.norm());
+  }
+  EXPECT_GT(peak, 0.01);  // the coupling's damping is felt while the device moves (N)
+}
+
+// With contact, a stalled step leaves the device against the tissue as linearised at the last
+// step: the force stays a push out of the block, never drops to zero, and does not jump.
+TEST(ServoLoop, DecoupledLocalModelKeepsThePushDuringAStallInContact) {
+  Scene s;
+  ScriptedHapticDevice dev(probe_script());
+  ServoOptions o;
+  o.threading = ServoOptions::Threading::decoupled;
+  o.watchdog_timeout = 0.2;
+  ServoLoop loop(s.sim, s.contacts, s.tool, dev, o);
+  std::atomic<double> stall_from{-1};
+  loop.set_step_hook([&](double t) {
+    if (stall_from < 0 && t >= 0.55) {  // held 2 mm deep
+      stall_from = t;
+      std::this_thread::sleep_for(std::chrono::milliseconds(40));
+    }
+  });
+  loop.run_real_time(0.8);
+  ASSERT_GE(stall_from.load(), 0.0);
+  EXPECT_EQ(loop.stats().watchdog_trips, 0u);
+  const auto f = dev.forces();
+  double before = 0, lo = 1e9, hi = 0, jump = 0;
+  for (std::size_t i = 1; i < f.size(); ++i) {
+    const double t = f[i].time;
+    if (t < stall_from - 0.005 && t > stall_from - 0.02) before = f[i].force.z();
+    if (t >= stall_from && t < stall_from + 0.04) {
+      lo = std::min(lo, f[i].force.z());
+      hi = std::max(hi, f[i].force.z());
+      jump = std::max(jump, (f[i].force - f[i - 1].force).norm());
+    }
+  }
+  EXPECT_GT(before, 0.05);  // pressing (N, upward)
+  EXPECT_GT(lo, 0.5 * before);
+  EXPECT_LT(hi, 1.5 * before);
+  EXPECT_LT(jump, 0.1 * before);
+}
+
 TEST(ServoLoop, RejectsBadOptions) {
   Scene s;
   ScriptedHapticDevice dev;
@@ -244,6 +411,16 @@ TEST(ServoLoop, RejectsBadOptions) {
   o.watchdog_timeout = 0.5e-3;  // shorter than a period
   EXPECT_THROW(ServoLoop(s.sim, s.contacts, s.tool, dev, o), Error);
   EXPECT_THROW(ServoLoop(s.sim, s.contacts, 7, dev), Error);
+  for (int p : {-1, 1, 99, 1000}) {
+    o = ServoOptions{};
+    o.realtime_priority = p;
+    EXPECT_THROW(ServoLoop(s.sim, s.contacts, s.tool, dev, o), Error) << p;
+  }
+  o = ServoOptions{};
+  o.realtime_spin = 2e-3;  // longer than a period
+  EXPECT_THROW(ServoLoop(s.sim, s.contacts, s.tool, dev, o), Error);
+  o.realtime_spin = std::nan("");
+  EXPECT_THROW(ServoLoop(s.sim, s.contacts, s.tool, dev, o), Error);
 }
 
 }  // namespace

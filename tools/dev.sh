@@ -72,7 +72,7 @@ build_in() {
   # shellcheck disable=SC2086  # the extra arguments are words
   cmake -S . -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=Checked -DFSM_BUILD_BENCHMARKS=OFF \
     -DFSM_BUILD_EXAMPLES=OFF -DFSM_BUILD_PYTHON=OFF -DFSM_BUILD_BUILDER=OFF \
-    -DFSM_USE_OPENMP=OFF "-DCMAKE_CXX_FLAGS=$flags" "${launcher[@]}" $args >/dev/null
+    "-DCMAKE_CXX_FLAGS=$flags" "${launcher[@]}" $args >/dev/null
   cmake --build "$dir" -j "$JOBS" --target "$@"
 }
 
@@ -82,8 +82,10 @@ build_in() {
 UNIT_TESTS=(test_voigt_link test_material test_sphere_model test_tetrahedral_mesh test_force_model
   test_stability test_integrators test_simulation test_skinning test_model_file test_shapes
   test_triangle_bvh test_volume_term test_contact test_haptic_device test_servo_loop
-  test_malformed_models test_no_allocation test_continuum test_vtk_export touch/test_touch_device)
-THREAD_TESTS=(test_servo_loop test_haptic_device test_simulation touch/test_touch_device)
+  test_malformed_models test_no_allocation test_continuum test_vtk_export test_worker_pool
+  touch/test_touch_device)
+THREAD_TESTS=(test_servo_loop test_haptic_device test_simulation test_worker_pool
+  touch/test_touch_device)
 run_tests() {  # run_tests DIR PROGRAM...: each test program, stopping at the first failure
   local dir=$1 t
   shift

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "fsm/detail/continuum.hpp"
+#include "fsm/detail/worker_pool.hpp"
 #include "fsm/sphere_model.hpp"
 #include "fsm/types.hpp"
 #include "fsm/voigt_link.hpp"
@@ -93,8 +94,10 @@ class ForceModel {
     Vector3<Scalar> gravity{Scalar(0), Scalar(0), Scalar(-9.81)};
     /// How the dashpots see relative velocity (VoigtLink).
     DampingModel damping{DampingModel::along_link};
-    /// Threads for the force loop; more than 1 needs a build with OpenMP. No thread is started
-    /// until a step runs with threads > 1.
+    /// Threads for the link loops (at most the machine's hardware threads): more than 1 starts a
+    /// persistent pool of threads - 1 helpers when the options are set (never inside a step); a
+    /// helper spins for 2 ms after each loop, so at 1 kHz it keeps a second core busy while the
+    /// simulation runs, and sleeps when it stops.
     int threads{1};
     /// Drag of the surroundings (1/s): a force \f$-\gamma m_i \mathbf{v}_i\f$ on every node, the
     /// mass-proportional damping that stands in for the tissue and fluid around an organ. It damps
@@ -290,7 +293,8 @@ class ForceModel {
   Scalar m_implicit_h{0};
   std::vector<Scalar> m_external;
   ScalarArray<Scalar> m_inverse_mass;
-  std::vector<std::vector<Scalar>> m_scratch;
+  std::vector<std::vector<Scalar>> m_scratch;  // one buffer of 3 |V| per pool thread
+  detail::PoolHandle m_pool;
   std::vector<PenaltyContact<Scalar>> m_contacts;
   Index m_num_contacts{0};
   Scalar m_contact_time{0};

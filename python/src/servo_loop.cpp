@@ -15,7 +15,8 @@ void define_servo_loop(py::module_& m) {
                       R"(How ServoLoop runs and couples (SI units). See the C++ docs of
 fsm::haptics::ServoOptions: rate (Hz), coupling_stiffness (N/m), coupling_damping (N s/m),
 proxy_mass (kg), max_force (N, 0 = the device's), ramp_time (s), watchdog_timeout (s),
-recover_time (s), device_offset (m), device_scale.)");
+recover_time (s), device_offset (m), device_scale, realtime_priority (0: off; 2-98: SCHED_FIFO
+for the loop's threads where the system allows), realtime_spin (s).)");
   opt.def(py::init<>(), "Defaults: 1 kHz, 400 N/m, 4 N s/m, 20 g, 0.25 s ramp, 1.5 ms watchdog.")
       .def_readwrite("rate", &Opt::rate, "Hz")
       .def_readwrite("coupling_stiffness", &Opt::coupling_stiffness, "N/m")
@@ -26,7 +27,11 @@ recover_time (s), device_offset (m), device_scale.)");
       .def_readwrite("watchdog_timeout", &Opt::watchdog_timeout, "s")
       .def_readwrite("recover_time", &Opt::recover_time, "s")
       .def_readwrite("device_offset", &Opt::device_offset, "m")
-      .def_readwrite("device_scale", &Opt::device_scale, "dimensionless");
+      .def_readwrite("device_scale", &Opt::device_scale, "dimensionless")
+      .def_readwrite("realtime_priority", &Opt::realtime_priority,
+                     "0: default scheduler; 2-98: SCHED_FIFO priority of the servo thread")
+      .def_readwrite("realtime_spin", &Opt::realtime_spin,
+                     "s a real-time servo thread spins before each deadline");
 
   py::class_<fh::ServoStats>(m, "ServoStats",
                              R"(Timing and safety figures of a ServoLoop run (s unless named).)")
@@ -42,7 +47,9 @@ recover_time (s), device_offset (m), device_scale.)");
       .def_readonly("step_max", &fh::ServoStats::step_max, "s")
       .def_readonly("watchdog_trips", &fh::ServoStats::watchdog_trips, "times the force was zeroed")
       .def_readonly("diverged_steps", &fh::ServoStats::diverged_steps, "steps rolled back")
-      .def_readonly("peak_force", &fh::ServoStats::peak_force, "N");
+      .def_readonly("peak_force", &fh::ServoStats::peak_force, "N")
+      .def_readonly("realtime", &fh::ServoStats::realtime,
+                    "every thread that asked for real-time scheduling got it");
 
   py::class_<fh::ServoLoop>(m, "ServoLoop",
                             R"(A haptic device coupled to a Simulation through a virtual coupling.

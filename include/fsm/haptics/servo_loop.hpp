@@ -62,6 +62,18 @@ struct ServoOptions {
   /// thread always sleeps.
   bool spin{true};
 
+  /// Real-time scheduling (Linux): 0 runs the loop's threads under the default scheduler; 2-98
+  /// asks `SCHED_FIFO` at this priority for the servo thread and the watchdog, and one below for
+  /// the decoupled simulation thread, so that other busy processes on the machine cannot
+  /// deschedule them. It needs root, `CAP_SYS_NICE` or a real-time priority limit (`ulimit -r`,
+  /// `rtprio` in limits.conf); where the system refuses, the loop runs under the default
+  /// scheduler and stats().realtime says so. A real-time servo thread never spins a whole period
+  /// (the kernel throttles a real-time thread that keeps a core 950 ms of every second): it
+  /// sleeps to `realtime_spin` (s) before each deadline and spins the rest. A thread the loop
+  /// borrows (run_real_time's caller) gets its scheduling back when the run ends.
+  int realtime_priority{0};
+  double realtime_spin{150e-6};
+
   /// Ticks whose timing is kept for stats() (allocated up front); later ticks are not recorded.
   std::size_t max_recorded_ticks{180000};
 
@@ -81,6 +93,9 @@ struct ServoStats {
   std::size_t watchdog_trips{0};                       ///< times the watchdog zeroed the force
   std::size_t diverged_steps{0};                       ///< steps the simulation rolled back
   double peak_force{0};                                ///< largest commanded force magnitude (N)
+  /// Every loop thread that asked for real-time scheduling (ServoOptions::realtime_priority) got
+  /// it; false when none was asked for or the system refused.
+  bool realtime{false};
 };
 
 /// @brief What the render side reads: the newest state the simulation published.
@@ -165,8 +180,18 @@ class ServoLoop {
   struct ProxySample {
     Vector3<double> position{Vector3<double>::Zero()}, velocity{Vector3<double>::Zero()};
   };
+  // The tissue's contact force on the instrument at the end of a step, linearised about the proxy
+  // state the step used: f(x, v) = force - stiffness (x - position) - damping (v - velocity).
+  struct TissueSample {
+    Vector3<double> force{Vector3<double>::Zero()};
+    Vector3<double> position{Vector3<double>::Zero()}, velocity{Vector3<double>::Zero()};
+    Eigen::Matrix3d stiffness{Eigen::Matrix3d::Zero()}, damping{Eigen::Matrix3d::Zero()};
+  };
+  // One backward-Euler step of the proxy under the coupling to `d` and the linearised tissue.
+  void advance_proxy(ProxySample& p, const DeviceSample& d, const TissueSample& tissue) const noexcept;
 
-  void begin();
+  /// Resets the run's state; `local_model`: the tick advances the proxy (decoupled real time).
+  void begin(bool local_model);
   void end() noexcept;
   void device_tick(double t) noexcept;
   void physics_step(double t) noexcept;
@@ -177,7 +202,12 @@ class ServoLoop {
   void physics_thread(double seconds) noexcept;
   void watchdog_thread() noexcept;
   void trip() noexcept;
-  static void wait_until(Clock::time_point deadline, bool spin) noexcept;
+  /// Waits for `deadline`: spinning (`spin`), sleeping to options().realtime_spin before it and
+  /// spinning the rest (`realtime`), else sleeping to 400 us before it.
+  void wait_until(Clock::time_point deadline, bool spin, bool realtime) const noexcept;
+  /// Asks real-time scheduling at options().realtime_priority - `below` for the calling thread
+  /// (when options().realtime_priority > 0) and counts the answer; returns whether it was granted.
+  bool enter_realtime(int below) noexcept;
   [[nodiscard]] double now() const noexcept;
 
   Simulation<double>& m_sim;
@@ -193,6 +223,12 @@ class ServoLoop {
   detail::TripleBuffer<ProxySample> m_proxy_buffer;
   detail::TripleBuffer<ServoSnapshot> m_snapshots;
   ProxySample m_proxy;  // physics side
+  // Decoupled real-time runs: the tick advances its own proxy against the latest linearised
+  // tissue (the local model) and hands it to the simulation thread.
+  bool m_local_model{false};
+  ProxySample m_tick_proxy;  // tick side
+  detail::TripleBuffer<TissueSample> m_tissue_buffer;
+  detail::TripleBuffer<ProxySample> m_tick_proxy_buffer;
 
   std::atomic<bool> m_running{false}, m_stop{false}, m_tripped{false};
   std::atomic<std::int64_t> m_heartbeat_ns{0};  // when the last step completed (ns since m_t0)
@@ -204,6 +240,7 @@ class ServoLoop {
   std::vector<float> m_periods, m_step_times;
   std::atomic<std::size_t> m_ticks{0}, m_steps{0}, m_missed{0}, m_trips{0}, m_diverged{0};
   std::atomic<std::size_t> m_healthy_steps{0};
+  std::atomic<int> m_rt_asked{0}, m_rt_granted{0};
   std::atomic<double> m_peak{0};
   Clock::time_point m_last_tick_start;
 };

@@ -433,8 +433,9 @@ void ForceModel<Scalar>::set_options(const Options& options) {
 
 template <typename Scalar>
 void ForceModel<Scalar>::resize_scratch() {
-  const int extra = std::max(0, std::min(m_options.threads, detail::max_threads()) - 1);
-  m_scratch.resize(std::size_t(extra));
+  const int threads = std::max(1, std::min(m_options.threads, detail::max_threads()));
+  m_pool.reset(threads);
+  m_scratch.resize(threads > 1 ? std::size_t(threads) : 0);
   for (auto& s : m_scratch) s.assign(3 * std::size_t(m_num_nodes), Scalar(0));
 }
 
@@ -485,7 +486,7 @@ void ForceModel<Scalar>::evaluate(const SphereModel<Scalar>& model, const ConstP
       if (lo < hi) kernel_range(lo, hi, out);
     }
   };
-  detail::scatter_links(m_options.threads, model.num_nodes(), model.num_links(), f.data(),
+  detail::scatter_links(m_pool.get(), model.num_nodes(), model.num_links(), f.data(),
                         m_scratch, init, kernel);
   m_continuum.add_forces(xp, vp, f.data());
   for (Index k = 0; k < m_num_contacts; ++k) {
@@ -607,7 +608,7 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
         B[4] = h2 * beta + (along ? Scalar(0) : h * L.kd[l]);
       }
     };
-    detail::scatter_links(m_options.threads, model.num_nodes(), model.num_links(), rhs.data(),
+    detail::scatter_links(m_pool.get(), model.num_nodes(), model.num_links(), rhs.data(),
                           m_scratch, init, kernel);
     // Jacobi diagonal: m_i + sum over links of diag(B_l), on both ends.
     // The drag's Jacobian -gamma m I joins the mass: M (1 + h gamma).
@@ -626,7 +627,7 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
         }
       }
     };
-    detail::scatter_links(m_options.threads, model.num_nodes(), model.num_links(), diagonal.data(),
+    detail::scatter_links(m_pool.get(), model.num_nodes(), model.num_links(), diagonal.data(),
                           m_scratch, init_diag, kernel_diag);
     if (!m_continuum.empty()) {
       // The elements: h F into the rhs, then their tangent (-h^2 H v into the rhs, diag(A)).
@@ -763,7 +764,7 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
       if (lo < hi) kernel_range(lo, hi, out);
     }
   };
-  detail::scatter_links(m_options.threads, model.num_nodes(), model.num_links(), y.data(),
+  detail::scatter_links(m_pool.get(), model.num_nodes(), model.num_links(), y.data(),
                         m_scratch, init, kernel);
   m_continuum.apply_implicit(pp, y.data());
   for (Index k = 0; k < m_num_contacts; ++k) {

@@ -8,6 +8,8 @@
 #include "fsm/error.hpp"
 
 #if defined(__linux__)
+#include <pthread.h>
+#include <sched.h>
 #include <sys/prctl.h>
 #endif
 
@@ -15,13 +17,37 @@ namespace fsm::haptics {
 
 namespace {
 
-// A servo thread gets the smallest timer slack, so that its sleeps wake on time. (Not SCHED_FIFO:
-// a real-time thread that spins is throttled by the kernel for 50 ms of every second.)
+// A servo thread gets the smallest timer slack, so that its sleeps wake on time.
 void make_servo_thread() noexcept {
 #if defined(__linux__)
   prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
 #endif
 }
+
+// The calling thread's scheduling policy and priority, put back when the guard ends: a loop that
+// borrows its caller's thread (run_real_time) leaves it as it found it.
+class SchedulingGuard {
+ public:
+  SchedulingGuard() noexcept {
+#if defined(__linux__)
+    m_saved = pthread_getschedparam(pthread_self(), &m_policy, &m_param) == 0;
+#endif
+  }
+  ~SchedulingGuard() {
+#if defined(__linux__)
+    if (m_saved) pthread_setschedparam(pthread_self(), m_policy, &m_param);
+#endif
+  }
+  SchedulingGuard(const SchedulingGuard&) = delete;
+  SchedulingGuard& operator=(const SchedulingGuard&) = delete;
+
+ private:
+#if defined(__linux__)
+  bool m_saved{false};
+  int m_policy{0};
+  sched_param m_param{};
+#endif
+};
 
 double percentile(std::vector<float> v, double q) {
   if (v.empty()) return 0;
@@ -64,6 +90,12 @@ ServoLoop::ServoLoop(Simulation<double>& sim, collision::ContactSolver<double>& 
                 "gains, max_force and ramp_time non-negative; the rotation non-zero");
   if (o.watchdog_timeout <= m_period)
     throw Error("", "servo loop options", "watchdog_timeout must exceed one servo period");
+  if (o.realtime_priority != 0 && (o.realtime_priority < 2 || o.realtime_priority > 98))
+    throw Error("", "servo loop options",
+                "realtime_priority must be 0 (off) or 2 to 98, got " +
+                    std::to_string(o.realtime_priority));
+  if (!(o.realtime_spin >= 0) || !(o.realtime_spin <= m_period))
+    throw Error("", "servo loop options", "realtime_spin must be between 0 and one servo period");
   if (instrument < 0 || instrument >= contacts.num_instruments())
     throw Error("", "servo loop", "instrument " + std::to_string(instrument) + " does not exist");
   m_options.device_rotation.normalize();
@@ -79,16 +111,37 @@ double ServoLoop::now() const noexcept {
   return std::chrono::duration<double>(Clock::now() - m_t0).count();
 }
 
-void ServoLoop::wait_until(Clock::time_point deadline, bool spin) noexcept {
-  // Sleeping overshoots by 0.3-1.3 ms at p99-p99.9 on a virtual machine (measured), so the servo
-  // thread spins to the deadline when asked; otherwise it sleeps to within 400 us and spins.
-  const auto margin = std::chrono::microseconds(400);
-  if (!spin && Clock::now() + margin < deadline) std::this_thread::sleep_until(deadline - margin);
+void ServoLoop::wait_until(Clock::time_point deadline, bool spin, bool realtime) const noexcept {
+  // Sleeping overshoots by 0.3-1.3 ms at p99-p99.9 on a virtual machine under the default
+  // scheduler (measured), so the servo thread spins to the deadline when asked; otherwise it
+  // sleeps to within 400 us and spins. A real-time thread wakes at once (it preempts every
+  // default-scheduler thread) and must not spin whole periods (the kernel would throttle it).
+  const auto margin =
+      realtime ? std::chrono::duration_cast<Clock::duration>(
+                     std::chrono::duration<double>(m_options.realtime_spin))
+               : Clock::duration(std::chrono::microseconds(400));
+  if ((realtime || !spin) && Clock::now() + margin < deadline)
+    std::this_thread::sleep_until(deadline - margin);
   while (Clock::now() < deadline) {
   }
 }
 
-void ServoLoop::begin() {
+bool ServoLoop::enter_realtime(int below) noexcept {
+  if (m_options.realtime_priority <= 0) return false;
+  m_rt_asked.fetch_add(1, std::memory_order_relaxed);
+  bool granted = false;
+#if defined(__linux__)
+  sched_param p{};
+  p.sched_priority = m_options.realtime_priority - below;
+  granted = pthread_setschedparam(pthread_self(), SCHED_FIFO, &p) == 0;
+#else
+  (void)below;
+#endif
+  if (granted) m_rt_granted.fetch_add(1, std::memory_order_relaxed);
+  return granted;
+}
+
+void ServoLoop::begin(bool local_model) {
   if (m_running.exchange(true)) throw Error("", "servo loop", "already running");
   try {
     m_device.start();
@@ -99,6 +152,7 @@ void ServoLoop::begin() {
   const DeviceLimits lim = m_device.limits();
   m_max_force =
       m_options.max_force > 0 ? std::min(m_options.max_force, lim.max_force) : lim.max_force;
+  m_local_model = local_model;
   m_stop = false;
   m_tripped = false;
   m_rearm_time = 0;
@@ -106,6 +160,8 @@ void ServoLoop::begin() {
   m_step_times.clear();
   m_ticks = m_steps = m_missed = m_trips = m_diverged = 0;
   m_healthy_steps = 0;
+  m_rt_asked = 0;
+  m_rt_granted = 0;
   m_peak = 0;
   // The proxy starts at the device.
   const DeviceState s = m_device.read(0.0);
@@ -121,6 +177,13 @@ void ServoLoop::begin() {
   m_proxy.velocity.setZero();
   m_proxy_buffer.back() = m_proxy;
   m_proxy_buffer.publish();
+  m_tick_proxy = m_proxy;
+  m_tick_proxy_buffer.back() = m_proxy;
+  m_tick_proxy_buffer.publish();
+  TissueSample& ts = m_tissue_buffer.back();
+  ts = TissueSample{};
+  ts.position = m_proxy.position;
+  m_tissue_buffer.publish();
   m_t0 = Clock::now();
   m_last_tick_start = m_t0;
   m_heartbeat_ns = 0;
@@ -167,14 +230,23 @@ void ServoLoop::device_tick(double t) noexcept {
   d.orientation = o.device_rotation * s.orientation;
   const DeviceSample sample = d;
 
-  m_proxy_buffer.update();
-  const ProxySample& p = m_proxy_buffer.front();
+  if (!m_local_model) m_proxy_buffer.update();  // lockstep: the step just advanced it
+  const ProxySample& p = m_local_model ? m_tick_proxy : m_proxy_buffer.front();
   Vector3<double> f = o.coupling_stiffness * (p.position - sample.position) +
                       o.coupling_damping * (p.velocity - sample.velocity);
   // Safety chain: a tripped loop commands zero; the force ramps in after start and after rearm();
   // the clamp is the smaller of ours and the device's.
   const double since = t - m_rearm_time.load(std::memory_order_relaxed);
   const double ramp = o.ramp_time > 0 ? std::clamp(since / o.ramp_time, 0.0, 1.0) : 1.0;
+  // Decoupled, the tick then advances the proxy itself against the latest linearised tissue (as
+  // the step does in lockstep, so with no contact the two give the same force), and the force
+  // stays that of the tissue, to first order, when a step is late.
+  if (m_local_model) {
+    m_tissue_buffer.update();
+    advance_proxy(m_tick_proxy, sample, m_tissue_buffer.front());
+    m_tick_proxy_buffer.back() = m_tick_proxy;
+    m_tick_proxy_buffer.publish();
+  }
   if (!f.allFinite()) f.setZero();
   f *= ramp;
   const double n = f.norm();
@@ -188,41 +260,59 @@ void ServoLoop::device_tick(double t) noexcept {
   ++m_ticks;
 }
 
+void ServoLoop::advance_proxy(ProxySample& p, const DeviceSample& d,
+                              const TissueSample& tissue) const noexcept {
+  // m dv/dt = k (x_d - x) + b (v_d - v) + f_tissue, backward Euler in the coupling and in the
+  // tissue's contact force, linearised as f_tissue(x + h v', v') = f_w - K (x + h v' - x_w) -
+  // C (v' - v_w) (K, C: the wrench's contact stiffness and damping; the contacts are far stiffer
+  // than the coupling, so an explicit tissue force would make the proxy ring):
+  // (m + h (b + C) + h^2 (k + K)) v' = m v + h (k (x_d - x) + b v_d + f_w - K (x - x_w) + C v_w).
+  const ServoOptions& o = m_options;
+  const double h = m_period;
+  const double k = o.coupling_stiffness, b = o.coupling_damping, m = o.proxy_mass;
+  const Eigen::Matrix3d A = (m + h * b + h * h * k) * Eigen::Matrix3d::Identity() +
+                            h * tissue.damping + h * h * tissue.stiffness;
+  const Vector3<double> rhs =
+      m * p.velocity + h * (k * (d.position - p.position) + b * d.velocity + tissue.force -
+                            tissue.stiffness * (p.position - tissue.position) +
+                            tissue.damping * tissue.velocity);
+  // A is symmetric positive definite (m > 0, K and C positive semi-definite).
+  Vector3<double> v = A.llt().solve(rhs);
+  if (!v.allFinite()) v.setZero();
+  p.velocity = v;
+  p.position += h * v;
+}
+
 void ServoLoop::physics_step(double t) noexcept {
   const auto start = Clock::now();
   if (m_hook) m_hook(t);
   m_device_buffer.update();
   const DeviceSample& d = m_device_buffer.front();
-  const ServoOptions& o = m_options;
-  const double h = m_period;
-  // Proxy: m dv/dt = k (x_d - x) + b (v_d - v) + f_tissue, backward Euler in the coupling and in
-  // the tissue's contact force, linearised about the last step's end as
-  // f_tissue(x + h v', v') = f - K h v' - C (v' - v) (K, C: the wrench's contact stiffness and
-  // damping; the contacts are far stiffer than the coupling, so an explicit tissue force would
-  // make the proxy ring):
-  // (m + h (b + C) + h^2 (k + K)) v' = m v + h (k (x_d - x) + b v_d + f + C v).
   auto& ins = m_contacts.instrument(m_instrument);
-  const auto& w = m_contacts.wrench(m_instrument);
-  const double k = o.coupling_stiffness, b = o.coupling_damping, m = o.proxy_mass;
-  const Eigen::Matrix3d A =
-      (m + h * b + h * h * k) * Eigen::Matrix3d::Identity() + h * w.damping + h * h * w.stiffness;
-  const Vector3<double> rhs =
-      m * m_proxy.velocity + h * (k * (d.position - m_proxy.position) + b * d.velocity + w.force +
-                                  w.damping * m_proxy.velocity);
-  // A is symmetric positive definite (m > 0, K and C positive semi-definite).
-  Vector3<double> v = A.llt().solve(rhs);
-  if (!v.allFinite()) v.setZero();
-  m_proxy.velocity = v;
-  m_proxy.position += h * v;
+  if (m_local_model) {
+    // Decoupled: the tick advanced the proxy; take its newest state.
+    m_tick_proxy_buffer.update();
+    m_proxy = m_tick_proxy_buffer.front();
+  } else {
+    // Lockstep: the tissue linearised about the last step's end, which is where the proxy is.
+    const auto& w = m_contacts.wrench(m_instrument);
+    TissueSample tissue;
+    tissue.force = w.force;
+    tissue.stiffness = w.stiffness;
+    tissue.damping = w.damping;
+    tissue.position = m_proxy.position;
+    tissue.velocity = m_proxy.velocity;
+    advance_proxy(m_proxy, d, tissue);
+  }
   ins.pose.position = m_proxy.position;
   ins.pose.orientation = d.orientation;
-  ins.linear_velocity = v;
+  ins.linear_velocity = m_proxy.velocity;
   ins.angular_velocity.setZero();
 
   // The contacts at the proxy's new pose go into the step (implicitly with implicit Euler); the
   // wrench the proxy feels next tick is their force at the end of the step.
   m_contacts.compute(m_sim.model(), m_sim.forces());
-  const StepReport report = m_sim.step(h);
+  const StepReport report = m_sim.step(m_period);
   m_contacts.collect(m_sim.forces());
   if (!report.advanced()) {
     ++m_diverged;
@@ -230,8 +320,19 @@ void ServoLoop::physics_step(double t) noexcept {
   } else {
     m_healthy_steps.fetch_add(1, std::memory_order_relaxed);
   }
-  m_proxy_buffer.back() = m_proxy;
-  m_proxy_buffer.publish();
+  if (m_local_model) {
+    const auto& w = m_contacts.wrench(m_instrument);
+    TissueSample& tissue = m_tissue_buffer.back();
+    tissue.force = w.force;
+    tissue.stiffness = w.stiffness;
+    tissue.damping = w.damping;
+    tissue.position = m_proxy.position;
+    tissue.velocity = m_proxy.velocity;
+    m_tissue_buffer.publish();
+  } else {
+    m_proxy_buffer.back() = m_proxy;
+    m_proxy_buffer.publish();
+  }
 
   ServoSnapshot& s = m_snapshots.back();
   s.time = t;
@@ -266,7 +367,7 @@ void check_seconds(double seconds, double rate) {
 
 void ServoLoop::run_fast(double seconds) {
   check_seconds(seconds, m_options.rate);
-  begin();
+  begin(false);
   const auto ticks = std::int64_t(std::llround(seconds * m_options.rate));
   for (std::int64_t k = 0; k < ticks; ++k) {
     const double t = double(k) * m_period;
@@ -284,13 +385,15 @@ bool ServoLoop::heartbeat_stale(Clock::time_point now) const noexcept {
 
 void ServoLoop::servo_thread(double seconds, bool with_step) noexcept {
   make_servo_thread();
+  const SchedulingGuard guard;
+  const bool realtime = enter_realtime(0);
   const auto period =
       std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(m_period));
   for (std::int64_t k = 0; !m_stop.load(std::memory_order_relaxed); ++k) {
     const double t = double(k) * m_period;
     if (seconds > 0 && t >= seconds) break;
     const auto deadline = m_t0 + k * period;
-    wait_until(deadline, m_options.spin);
+    wait_until(deadline, m_options.spin, realtime);
     const auto start = Clock::now();
     if (k > 0 && m_periods.size() < m_periods.capacity())
       m_periods.push_back(std::chrono::duration<float>(start - m_last_tick_start).count());
@@ -306,18 +409,22 @@ void ServoLoop::servo_thread(double seconds, bool with_step) noexcept {
 
 void ServoLoop::physics_thread(double seconds) noexcept {
   make_servo_thread();
+  const SchedulingGuard guard;
+  const bool realtime = enter_realtime(1);
   const auto period =
       std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(m_period));
   for (std::int64_t k = 0; !m_stop.load(std::memory_order_relaxed); ++k) {
     const double t = double(k) * m_period;
     if (seconds > 0 && t >= seconds) break;
-    wait_until(m_t0 + k * period + period / 2,
-               false);  // half a period after the tick that feeds it
+    // Half a period after the tick that feeds it.
+    wait_until(m_t0 + k * period + period / 2, false, realtime);
     physics_step(t);
   }
 }
 
 void ServoLoop::watchdog_thread() noexcept {
+  const SchedulingGuard guard;
+  enter_realtime(0);
   while (!m_stop.load(std::memory_order_relaxed)) {
     std::this_thread::sleep_for(std::chrono::microseconds(250));
     if (heartbeat_stale(Clock::now())) trip();
@@ -325,7 +432,7 @@ void ServoLoop::watchdog_thread() noexcept {
 }
 
 void ServoLoop::start() {
-  begin();
+  begin(m_options.threading == ServoOptions::Threading::decoupled);
   try {
     if (m_options.threading == ServoOptions::Threading::lockstep) {
       m_threads.emplace_back([this] { servo_thread(0, true); });
@@ -352,7 +459,7 @@ void ServoLoop::start() {
 
 void ServoLoop::run_real_time(double seconds) {
   check_seconds(seconds, m_options.rate);
-  begin();
+  begin(m_options.threading == ServoOptions::Threading::decoupled);
   try {
     if (m_options.threading == ServoOptions::Threading::lockstep) {
       std::thread watchdog([this] { watchdog_thread(); });
@@ -391,6 +498,7 @@ ServoStats ServoLoop::stats() const {
   s.watchdog_trips = m_trips;
   s.diverged_steps = m_diverged;
   s.peak_force = m_peak;
+  s.realtime = m_rt_asked.load() > 0 && m_rt_granted.load() == m_rt_asked.load();
   s.period_p50 = percentile(m_periods, 0.5);
   s.period_p99 = percentile(m_periods, 0.99);
   s.period_max =

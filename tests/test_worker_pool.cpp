@@ -1,0 +1,87 @@
+// WorkerPool (detail/worker_pool.hpp): every thread of the pool runs its share of every job,
+// including after its helpers went to sleep; the parallel link scatter on it gives the forces and
+// the implicit step of one thread. Under ThreadSanitizer in CI (tools/dev.sh sanitize).
+
+#include <atomic>
+#include <chrono>
+#include <thread>
+#include <vector>
+
+#include "common.hpp"
+#include "fsm/detail/parallel.hpp"
+#include "fsm/detail/worker_pool.hpp"
+
+namespace fsm::test {
+namespace {
+
+using detail::WorkerPool;
+
+TEST(WorkerPool, EveryThreadRunsItsShareOfEveryJob) {
+  for (int threads : {1, 2, 3, 4}) {
+    WorkerPool pool(threads);
+    ASSERT_EQ(pool.size(), threads);
+    std::vector<long> hits(std::size_t(threads), 0);
+    long total = 0;
+    for (int job = 0; job < 200; ++job) {
+      auto fn = [&](int t, int n) {
+        ASSERT_EQ(n, threads);
+        hits[std::size_t(t)] += job;  // each thread writes its own slot only
+      };
+      pool.run(fn);
+      total += job;
+    }
+    for (int t = 0; t < threads; ++t) EXPECT_EQ(hits[std::size_t(t)], total) << t;
+  }
+}
+
+// Helpers sleep after the spin time; a job then wakes them, and the pool can be destroyed while
+// they sleep (no hang).
+TEST(WorkerPool, WakesSleepingHelpersAndStopsWhileTheySleep) {
+  WorkerPool pool(3, std::chrono::microseconds(100));
+  std::atomic<int> ran{0};
+  auto fn = [&](int, int) { ran.fetch_add(1); };
+  for (int round = 0; round < 5; ++round) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));  // far past the spin: asleep
+    pool.run(fn);
+    EXPECT_EQ(ran.load(), 3 * (round + 1));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(5));
+}
+
+// A pool copied with what holds it is a pool of its own, of the same size.
+TEST(WorkerPool, HandleCopiesMakeTheirOwnPool) {
+  detail::PoolHandle a(2);
+  const detail::PoolHandle b = a;
+  EXPECT_EQ(b.threads(), 2);
+  EXPECT_NE(a.get(), b.get());
+  detail::PoolHandle c;
+  EXPECT_EQ(c.threads(), 1);
+  EXPECT_EQ(c.get(), nullptr);
+}
+
+// Twenty implicit steps on two threads (the link loops of the right-hand side, the diagonal and
+// every CG product scattered on the pool) end where one thread's do, to rounding (the buffers
+// are summed in another order): random masses, velocities and jittered links, bottom fixed.
+TEST(WorkerPool, TwoThreadsStepLikeOne) {
+  if (detail::max_threads() < 2) GTEST_SKIP() << "a machine with one hardware thread";
+  auto run = [](int threads) {
+    std::mt19937 rng(5);
+    SphereModel<double> m = random_model<double>(rng, {5, 4, 6}, 0.3, true);
+    for (Index i = 0; i < m.num_nodes(); ++i)
+      if (m.rest_positions()(i, 2) < 1e-9) m.set_fixed(i);
+    Simulation<double>::Options o;
+    o.integrator = "implicit_euler";
+    o.forces.threads = threads;
+    o.forces.drag = 5;
+    Simulation<double> sim(std::move(m), o);
+    for (int s = 0; s < 20; ++s) EXPECT_TRUE(sim.step(1e-3).advanced());
+    // How far the model moved (it sags under gravity), and where it is.
+    EXPECT_GT((sim.model().positions() - sim.model().rest_positions()).norm(), 1e-6);
+    return Positions<double>(sim.model().positions());
+  };
+  const Positions<double> one = run(1), two = run(2);
+  EXPECT_TRUE(matrices_near(one, two, 1e-12));
+}
+
+}  // namespace
+}  // namespace fsm::test
