@@ -1,0 +1,152 @@
+// One 1 ms implicit Euler step of any model file, the way the servo loop steps it: drag 5/s,
+// gravity, CG (block-Jacobi) to a relative residual TOL, part contacts on, and a capsule probe
+// (5 mm shaft) pressing 1 mm past the sagged centre of the outermost free sphere of the largest
+// tetrahedral part. The model first sags for 0.5 s with the probe away, then the probe presses
+// for 0.3 s; then STEPS steps are timed one by one. Not a Google Benchmark: it reports the
+// distribution (mean, p50, p99, max) and the CG iterations, for the scale issue's models (the
+// bundled uterus, the VHF left adnexa, a pelvis-sized model: docs/benchmarks.md).
+//
+//   bench_model_step MODEL.fsm [--law links|continuum] [--threads N] [--tolerance TOL]
+//                    [--steps N] [--no-probe] [--json]
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include "fsm/collision/contact.hpp"
+#include "fsm/fsm.hpp"
+#include "fsm/implicit_euler_integrator.hpp"
+#include "fsm/model_file.hpp"
+#include "fsm_support/probe.hpp"
+
+using namespace fsm;
+
+int main(int argc, char** argv) {
+  std::string path, law = "links";
+  int threads = 1, steps = 2000;
+  double tolerance = 1e-3;
+  bool probe = true, json = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "bench_model_step: %s needs a value\n", a.c_str());
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (a == "--law")
+      law = value();
+    else if (a == "--threads")
+      threads = std::atoi(value().c_str());
+    else if (a == "--tolerance")
+      tolerance = std::atof(value().c_str());
+    else if (a == "--steps")
+      steps = std::atoi(value().c_str());
+    else if (a == "--no-probe")
+      probe = false;
+    else if (a == "--json")
+      json = true;
+    else if (!a.empty() && a[0] != '-' && path.empty())
+      path = a;
+    else {
+      std::fprintf(stderr,
+                   "usage: %s MODEL.fsm [--law links|continuum] [--threads N] [--tolerance TOL] "
+                   "[--steps N] [--no-probe] [--json]\n",
+                   argv[0]);
+      return 2;
+    }
+  }
+  if (path.empty() || (law != "links" && law != "continuum") || threads < 1 || steps < 1 ||
+      !(tolerance > 0)) {
+    std::fprintf(stderr, "bench_model_step: a model file, --law links|continuum, --threads >= 1, "
+                         "--steps >= 1 and --tolerance > 0\n");
+    return 2;
+  }
+  try {
+    const TissueModel<double> model = load_model(path);
+    SphereModel<double> spheres = model.spheres;
+    const Part* target = nullptr;
+    for (const Part& p : model.parts) {
+      if (law == "continuum" && p.topology == Topology::tetrahedral)
+        spheres.set_region_law(p.region, ForceLaw::continuum);
+      if (p.topology == Topology::tetrahedral && (!target || p.num_nodes > target->num_nodes))
+        target = &p;
+    }
+    if (!target) target = &model.parts.front();
+    Simulation<double>::Options so;
+    so.forces.drag = 5;
+    so.forces.threads = threads;
+    so.divergence.max_substep_halvings = 2;  // as the demo and servo_latency
+    Simulation<double> sim(std::move(spheres), so);
+    ImplicitEulerIntegrator<double>::Options io;
+    io.tolerance = tolerance;
+    sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
+    collision::ContactSolver<double> contacts(sim.model(), sim.forces());
+    support::CapsuleProbe cp{support::outermost_free_sphere(model.spheres, *target)};
+    contacts.add_instrument(cp.instrument(-0.02));  // away while the model sags
+    long diverged = 0;
+    auto step = [&] {
+      contacts.compute(sim.model(), sim.forces());
+      const StepReport<double> r = sim.step(1e-3);
+      contacts.collect(sim.forces());
+      diverged += !r.advanced();
+      return r;
+    };
+    for (int s = 0; s < 500; ++s) step();
+    if (probe) {
+      cp.site.centre = sim.model().positions().row(cp.site.sphere).transpose();
+      cp.press(contacts, 0, cp.site.radius + 0.001);
+    }
+    for (int s = 0; s < 300; ++s) step();
+    std::vector<double> t(std::size_t(steps), 0.0);
+    long iterations = 0;
+    Index probe_contacts = 0;
+    for (int s = 0; s < steps; ++s) {
+      const auto t0 = std::chrono::steady_clock::now();
+      const StepReport<double> r = step();
+      t[std::size_t(s)] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      iterations += r.solver_iterations;
+    }
+    for (Index k = 0; k < contacts.num_contacts(); ++k)
+      if (contacts.contacts()[k].instrument >= 0) ++probe_contacts;
+    const double mean = [&] {
+      double s = 0;
+      for (double x : t) s += x;
+      return s / double(t.size());
+    }();
+    std::sort(t.begin(), t.end());
+    auto pct = [&](double q) { return t[std::min(t.size() - 1, std::size_t(q * double(t.size() - 1) + 0.5))]; };
+    const double it = double(iterations) / double(steps);
+    if (json)
+      std::printf("{\"model\": \"%s\", \"spheres\": %d, \"links\": %d, \"tetrahedra\": %d, "
+                  "\"law\": \"%s\", \"threads\": %d, \"tolerance\": %g, \"probe\": %s, "
+                  "\"probe_contacts\": %d, \"contacts\": %d, \"steps\": %d, \"mean_us\": %.1f, "
+                  "\"p50_us\": %.1f, \"p99_us\": %.1f, \"max_us\": %.1f, \"cg_iterations\": %.2f, "
+                  "\"diverged\": %ld}\n",
+                  path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
+                  int(sim.model().num_tetrahedra()), law.c_str(), threads, tolerance,
+                  probe ? "true" : "false", int(probe_contacts), int(contacts.num_contacts()),
+                  steps, mean * 1e6, pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it,
+                  diverged);
+    else
+      std::printf("%s: %d spheres, %d links, %d tetrahedra; %s law, %d thread(s), CG to %g; "
+                  "probe on '%s' (%d contacts of %d)\n  1 ms step: mean %.1f us, p50 %.1f, p99 "
+                  "%.1f, max %.1f; %.2f CG iterations; %ld diverged steps\n",
+                  path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
+                  int(sim.model().num_tetrahedra()), law.c_str(), threads, tolerance,
+                  target->name.c_str(), int(probe_contacts), int(contacts.num_contacts()),
+                  mean * 1e6, pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it, diverged);
+    if (probe && probe_contacts == 0) {
+      std::fprintf(stderr, "bench_model_step: the probe does not touch the tissue\n");
+      return 1;
+    }
+    return 0;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_model_step: %s\n", e.what());
+    return 1;
+  }
+}
