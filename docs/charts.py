@@ -5,8 +5,9 @@
 
 Reads  docs/data/bench_force_model.json, docs/data/bench_integrators.json (Google Benchmark JSON)
        docs/data/integrator_accuracy.csv, docs/data/frame_accuracy.csv (if present)
+       docs/data/model_step.jsonl (bench_model_step --json lines, one per model, law and threads)
 Writes docs/img/force_per_link.png, docs/img/step_cost.png, docs/img/integrator_speed_accuracy.png,
-       docs/img/frame_speed_accuracy.png, docs/img/scale_step_time.png
+       docs/img/frame_speed_accuracy.png, docs/img/scale_step_time.png, docs/img/model_step_time.png
 """
 import csv
 import json
@@ -131,6 +132,47 @@ def scale_chart():
     fig.savefig(os.path.join(IMG, "scale_step_time.png"), dpi=120)
 
 
+def model_step_chart():
+    """Time per 1 ms implicit step of real models (a probe pressing) against spheres: mean and
+    p99, both laws, 1 and 2 threads; the 1 kHz budget and the scale issue's 400 us target."""
+    path = os.path.join(DATA, "model_step.jsonl")
+    if not os.path.exists(path):
+        return
+    rows = [json.loads(line) for line in open(path) if line.strip()]
+    fig, ax = plt.subplots(figsize=(6.6, 4.4))
+    series = {}
+    for r in rows:
+        if r["diverged"]:
+            continue
+        series.setdefault((r["law"], r["threads"]), []).append(r)
+    for (law, threads), pts in sorted(series.items()):
+        pts.sort(key=lambda r: r["spheres"])
+        style = {"color": "tab:purple" if law == "continuum" else "tab:green",
+                 "linestyle": "-" if threads == 1 else "--", "marker": "o"}
+        ax.plot([r["spheres"] for r in pts], [r["mean_us"] for r in pts],
+                label=f"{law}, {threads} thread{'s' if threads > 1 else ''}: mean", **style)
+        ax.plot([r["spheres"] for r in pts], [r["p99_us"] for r in pts], alpha=0.35,
+                label=f"{law}, {threads} thread{'s' if threads > 1 else ''}: p99", **style)
+    seen = set()
+    for r in rows:
+        if r["model"] not in seen and r["law"] == "links" and r["threads"] == 1:
+            seen.add(r["model"])
+            ax.annotate(r["model"].split(" (")[0], xy=(r["spheres"], r["mean_us"]),
+                        xytext=(-20, -18), textcoords="offset points", fontsize=7)
+    ax.axhline(1000, color="black", linewidth=0.8)
+    ax.text(700, 1050, "1 kHz budget", fontsize=7)
+    ax.axhline(400, color="black", linewidth=0.6, linestyle=":")
+    ax.text(700, 420, "scale issue's pelvis target (400 us)", fontsize=7)
+    ax.set_yscale("log")
+    ax.set_xlim(600, 2050)
+    ax.set_xlabel("spheres")
+    ax.set_ylabel("one 1 ms implicit Euler step with a probe, microseconds")
+    ax.set_title("Real models: step time (block-Jacobi CG to 1e-3, drag 5/s)")
+    ax.legend(fontsize=6, ncol=2)
+    fig.tight_layout()
+    fig.savefig(os.path.join(IMG, "model_step_time.png"), dpi=120)
+
+
 def accuracy_chart():
     rows = list(csv.DictReader(open(os.path.join(DATA, "integrator_accuracy.csv"))))
     fig, ax = plt.subplots(figsize=(6.4, 4.2))
@@ -190,6 +232,7 @@ if __name__ == "__main__":
     force_chart()
     step_chart()
     scale_chart()
+    model_step_chart()
     accuracy_chart()
     frame_chart()
     print("wrote", ", ".join(sorted(os.listdir(IMG))))
