@@ -277,8 +277,9 @@ TEST(ServoLoop, RealTimePriorityIsTakenWhereGrantedAndGivenBack) {
   o.realtime_priority = 20;
   ServoLoop rt(rt_scene.sim, rt_scene.contacts, rt_scene.tool, rt_dev, o);
   std::atomic<int> policy{-1}, priority{-1};
-  rt.set_step_hook([&](double t) {
-    if (t == 0) {
+  std::atomic<bool> seen{false};
+  rt.set_step_hook([&](double) {
+    if (!seen.exchange(true)) {
       const auto [pol, pri] = scheduling();
       policy = pol;
       priority = pri;
@@ -294,24 +295,53 @@ TEST(ServoLoop, RealTimePriorityIsTakenWhereGrantedAndGivenBack) {
   }
   EXPECT_EQ(scheduling(), before) << "run_real_time kept its caller's thread real-time";
   ASSERT_EQ(rt.stats().watchdog_trips, 0u) << "the machine stalled the loop for > 50 ms";
+  // A real-time loop a period late skips to the tick due now, so the curve is run_fast's only
+  // when no deadline was missed (a stall of the virtual machine is not this test's business).
+  if (rt.stats().missed_deadlines > 0) GTEST_SKIP() << "a deadline was missed: curves differ";
   const auto a = fast_dev.forces(), b = rt_dev.forces();
   ASSERT_EQ(a.size(), b.size());
   for (std::size_t i = 0; i < a.size(); ++i) ASSERT_EQ(a[i].force, b[i].force) << "tick " << i;
 }
 
-// Decoupled, the simulation thread runs one priority below the tick.
+// A scripted device that records the scheduling of the thread that reads it after time 0 (the
+// tick's; the loop's start reads it once at time 0 on the caller's thread).
+class SchedulingProbe final : public HapticDevice {
+ public:
+  explicit SchedulingProbe(std::vector<Waypoint> w) : m_script(std::move(w)) {}
+  std::string name() const override { return "scheduling probe"; }
+  DeviceLimits limits() const override { return {}; }
+  DeviceState read(double t) noexcept override {
+    if (t > 0 && !m_seen.exchange(true)) {
+      const auto [pol, pri] = scheduling();
+      policy = pol;
+      priority = pri;
+    }
+    return m_script.read(t);
+  }
+  Vector3<double> apply_force(const Vector3<double>& f) noexcept override {
+    return m_script.apply_force(f);
+  }
+  std::atomic<int> policy{-1}, priority{-1};
+
+ private:
+  ScriptedHapticDevice m_script;
+  std::atomic<bool> m_seen{false};
+};
+
+// Decoupled, the tick runs at the priority asked and the simulation thread one below.
 TEST(ServoLoop, DecoupledSimulationThreadRunsOneRealTimePriorityBelowTheTick) {
   const bool allowed = fifo_allowed(30);
   Scene s;
-  ScriptedHapticDevice dev(probe_script());
+  SchedulingProbe dev(probe_script());
   ServoOptions o;
   o.threading = ServoOptions::Threading::decoupled;
   o.watchdog_timeout = 0.05;
   o.realtime_priority = 30;
   ServoLoop loop(s.sim, s.contacts, s.tool, dev, o);
   std::atomic<int> policy{-1}, priority{-1};
-  loop.set_step_hook([&](double t) {
-    if (t == 0) {
+  std::atomic<bool> seen{false};
+  loop.set_step_hook([&](double) {
+    if (!seen.exchange(true)) {
       const auto [pol, pri] = scheduling();
       policy = pol;
       priority = pri;
@@ -319,8 +349,10 @@ TEST(ServoLoop, DecoupledSimulationThreadRunsOneRealTimePriorityBelowTheTick) {
   });
   loop.run_real_time(0.3);
   EXPECT_EQ(loop.stats().realtime, allowed);
-  EXPECT_GE(loop.stats().ticks, 290u);
+  EXPECT_GE(loop.stats().steps, 1u);
   if (allowed) {
+    EXPECT_EQ(dev.policy.load(), SCHED_FIFO);  // the tick
+    EXPECT_EQ(dev.priority.load(), 30);
     EXPECT_EQ(policy.load(), SCHED_FIFO);
     EXPECT_EQ(priority.load(), 29);
   }
@@ -365,22 +397,29 @@ TEST(ServoLoop, DecoupledLocalModelCarriesTheForceThroughAStall) {
   EXPECT_GT(peak, 0.01);  // the coupling's damping is felt while the device moves (N)
 }
 
-// With contact, a stalled step leaves the device against the tissue as linearised at the last
-// step: the force stays a push out of the block, never drops to zero, and does not jump.
-TEST(ServoLoop, DecoupledLocalModelKeepsThePushDuringAStallInContact) {
+// The local model is one-sided: with the simulation stalled 40 ms while the device retreats out
+// of the tissue, the device is not held back. A proxy frozen where the stall began (or a linear
+// model that pulls) would drag it with about k_c x 1 mm = 0.4 N by the stall's end.
+TEST(ServoLoop, DecoupledLocalModelLetsGoDuringAStallWhileRetreating) {
   Scene s;
-  ScriptedHapticDevice dev(probe_script());
+  // Down 2 mm into the block (top at 10 mm), held, then back up at 25 mm/s.
+  const std::vector<Waypoint> script{{0.0, V3(0.01, 0.01, 0.016), Eigen::Quaterniond::Identity(), 0},
+                                     {0.3, V3(0.01, 0.01, 0.011), Eigen::Quaterniond::Identity(), 0},
+                                     {0.6, V3(0.01, 0.01, 0.011), Eigen::Quaterniond::Identity(), 0},
+                                     {0.8, V3(0.01, 0.01, 0.016), Eigen::Quaterniond::Identity(), 0}};
+  ScriptedHapticDevice dev(script);
   ServoOptions o;
   o.threading = ServoOptions::Threading::decoupled;
   o.watchdog_timeout = 0.2;
   ServoLoop loop(s.sim, s.contacts, s.tool, dev, o);
-  // The stall begins at about 0.55 s of the tick's clock (held 2 mm deep), read from the wall
-  // clock: the simulation thread's own time lags behind the tick's on a slow (sanitised) build.
+  // The stall begins at about 0.62 s of the tick's clock, read from the wall clock: the
+  // simulation thread's own time lags behind the tick's on a slow (sanitised) build.
   std::atomic<double> stall_from{-1};
   std::chrono::steady_clock::time_point start;
   loop.set_step_hook([&](double) {
-    const double now = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    if (stall_from < 0 && now >= 0.55) {
+    const double now =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (stall_from < 0 && now >= 0.62) {
       stall_from = now;
       std::this_thread::sleep_for(std::chrono::milliseconds(40));
     }
@@ -388,25 +427,18 @@ TEST(ServoLoop, DecoupledLocalModelKeepsThePushDuringAStallInContact) {
   start = std::chrono::steady_clock::now();
   loop.run_real_time(0.8);
   ASSERT_GE(stall_from.load(), 0.0);
-  ASSERT_LT(stall_from.load(), 0.62) << "the simulation thread never stepped in the hold";
+  ASSERT_LT(stall_from.load(), 0.66) << "the simulation thread never stepped in the retreat";
   EXPECT_EQ(loop.stats().watchdog_trips, 0u);
   const auto f = dev.forces();
-  double before = 0, lo = 1e9, hi = 0, jump = 0;
-  for (std::size_t i = 1; i < f.size(); ++i) {
-    const double t = f[i].time;
-    if (t < stall_from - 0.005 && t > stall_from - 0.02) before = f[i].force.z();
-    // Inside the stall, a millisecond clear of its ends (the tick's clock and the wall clock
-    // agree to about that).
-    if (t >= stall_from + 0.002 && t < stall_from + 0.038) {
-      lo = std::min(lo, f[i].force.z());
-      hi = std::max(hi, f[i].force.z());
-      jump = std::max(jump, (f[i].force - f[i - 1].force).norm());
-    }
+  double held = 0, low = 1e9;
+  for (const auto& sample : f) {
+    if (sample.time > 0.5 && sample.time < 0.59) held = sample.force.z();
+    // Inside the stall, a millisecond clear of its ends.
+    if (sample.time >= stall_from + 0.002 && sample.time < stall_from + 0.038)
+      low = std::min(low, sample.force.z());
   }
-  EXPECT_GT(before, 0.05);  // pressing (N, upward)
-  EXPECT_GT(lo, 0.5 * before);
-  EXPECT_LT(hi, 1.5 * before);
-  EXPECT_LT(jump, 0.1 * before);
+  EXPECT_GT(held, 0.05);  // it was pressing (N, upward)
+  EXPECT_GT(low, -0.03);  // and is not held back while it retreats
 }
 
 TEST(ServoLoop, RejectsBadOptions) {
@@ -423,6 +455,15 @@ TEST(ServoLoop, RejectsBadOptions) {
     o = ServoOptions{};
     o.realtime_priority = p;
     EXPECT_THROW(ServoLoop(s.sim, s.contacts, s.tool, dev, o), Error) << p;
+  }
+  o = ServoOptions{};
+  o.realtime_priority = 20;  // with a simulation on two threads (the pool is not real-time)
+  {
+    Scene two;
+    auto fo = two.sim.forces().options();
+    fo.threads = 2;
+    two.sim.set_force_options(fo);
+    EXPECT_THROW(ServoLoop(two.sim, two.contacts, two.tool, dev, o), Error);
   }
   o = ServoOptions{};
   o.realtime_spin = 2e-3;  // longer than a period

@@ -9,13 +9,23 @@
 #include <thread>
 #include <vector>
 
+#if defined(__linux__)
+#include <sched.h>
+#endif
+
 #include "fsm/detail/worker_pool.hpp"
 #include "fsm/types.hpp"
 
 namespace fsm::detail {
 
-/// Threads a simulation may use at most: the machine's hardware threads.
+/// Threads a simulation may use at most: the CPUs this process may run on (its affinity mask,
+/// which a container or `taskset` narrows; hardware_concurrency() does not see it).
 inline int max_threads() noexcept {
+#if defined(__linux__)
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (sched_getaffinity(0, sizeof set, &set) == 0) return std::max(1, CPU_COUNT(&set));
+#endif
   return std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
 }
 

@@ -35,14 +35,14 @@ class WorkerPool {
                       std::chrono::microseconds spin = std::chrono::microseconds(2000))
       : m_size(std::max(threads, 1)), m_spin(spin) {
     m_threads.reserve(std::size_t(m_size - 1));
-    for (int t = 1; t < m_size; ++t) m_threads.emplace_back([this, t] { helper(t); });
+    try {
+      for (int t = 1; t < m_size; ++t) m_threads.emplace_back([this, t] { helper(t); });
+    } catch (...) {  // a thread that could not start: stop the ones that did, then report
+      shut_down();
+      throw;
+    }
   }
-  ~WorkerPool() {
-    m_stop.store(true, std::memory_order_seq_cst);
-    m_epoch.fetch_add(1, std::memory_order_seq_cst);
-    wake();
-    for (auto& t : m_threads) t.join();
-  }
+  ~WorkerPool() { shut_down(); }
   WorkerPool(const WorkerPool&) = delete;
   WorkerPool& operator=(const WorkerPool&) = delete;
 
@@ -66,6 +66,14 @@ class WorkerPool {
   }
 
  private:
+  void shut_down() noexcept {
+    m_stop.store(true, std::memory_order_seq_cst);
+    m_epoch.fetch_add(1, std::memory_order_seq_cst);
+    wake();
+    for (auto& t : m_threads)
+      if (t.joinable()) t.join();
+  }
+
   static void relax() noexcept {
 #if defined(__x86_64__) || defined(__i386__)
     __builtin_ia32_pause();
@@ -123,6 +131,10 @@ class WorkerPool {
   std::vector<std::thread> m_threads;
   void (*m_call)(void*, int, int){nullptr};
   void* m_fn{nullptr};
+  // The futex waits on the epoch's 32 bits.
+  static_assert(sizeof(std::atomic<std::uint32_t>) == sizeof(std::uint32_t) &&
+                    std::atomic<std::uint32_t>::is_always_lock_free,
+                "the epoch must be a plain 32-bit word");
   alignas(64) std::atomic<std::uint32_t> m_epoch{0};
   alignas(64) std::atomic<int> m_pending{0};
   alignas(64) std::atomic<int> m_sleepers{0};

@@ -69,8 +69,11 @@ struct ServoOptions {
   /// `rtprio` in limits.conf); where the system refuses, the loop runs under the default
   /// scheduler and stats().realtime says so. A real-time servo thread never spins a whole period
   /// (the kernel throttles a real-time thread that keeps a core 950 ms of every second): it
-  /// sleeps to `realtime_spin` (s) before each deadline and spins the rest. A thread the loop
-  /// borrows (run_real_time's caller) gets its scheduling back when the run ends.
+  /// sleeps to `realtime_spin` (s) before each deadline and spins the rest, and when it is a
+  /// period or more behind it skips to the tick due now (counting the skipped ones as missed)
+  /// rather than running ticks back to back. A thread the loop borrows (run_real_time's caller)
+  /// gets its scheduling back when the run ends. Not with a simulation on more than one thread
+  /// (its pool's helpers run at the default priority; fsm::Error).
   int realtime_priority{0};
   double realtime_spin{150e-6};
 

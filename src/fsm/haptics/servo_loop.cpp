@@ -96,6 +96,12 @@ ServoLoop::ServoLoop(Simulation<double>& sim, collision::ContactSolver<double>& 
                     std::to_string(o.realtime_priority));
   if (!(o.realtime_spin >= 0) || !(o.realtime_spin <= m_period))
     throw Error("", "servo loop options", "realtime_spin must be between 0 and one servo period");
+  if (o.realtime_priority > 0 && sim.forces().options().threads > 1)
+    throw Error("", "servo loop options",
+                "realtime_priority with a simulation on " +
+                    std::to_string(sim.forces().options().threads) +
+                    " threads: the worker pool's helpers run at the default priority, and a "
+                    "real-time step would spin waiting for them; use one thread");
   if (instrument < 0 || instrument >= contacts.num_instruments())
     throw Error("", "servo loop", "instrument " + std::to_string(instrument) + " does not exist");
   m_options.device_rotation.normalize();
@@ -278,6 +284,16 @@ void ServoLoop::advance_proxy(ProxySample& p, const DeviceSample& d,
                             tissue.damping * tissue.velocity);
   // A is symmetric positive definite (m > 0, K and C positive semi-definite).
   Vector3<double> v = A.llt().solve(rhs);
+  // The local model (decoupled: the same linearisation for many ticks) is one-sided: where it
+  // would pull the proxy back into the tissue (a contact only pushes), the proxy moves free.
+  if (m_local_model && tissue.force.squaredNorm() > 0) {
+    const Vector3<double> f_end = tissue.force -
+                                  tissue.stiffness * (p.position + h * v - tissue.position) -
+                                  tissue.damping * (v - tissue.velocity);
+    if (f_end.dot(tissue.force) < 0)
+      v = (m * p.velocity + h * (k * (d.position - p.position) + b * d.velocity)) /
+          (m + h * b + h * h * k);
+  }
   if (!v.allFinite()) v.setZero();
   p.velocity = v;
   p.position += h * v;
@@ -390,14 +406,26 @@ void ServoLoop::servo_thread(double seconds, bool with_step) noexcept {
   const auto period =
       std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(m_period));
   for (std::int64_t k = 0; !m_stop.load(std::memory_order_relaxed); ++k) {
-    const double t = double(k) * m_period;
-    if (seconds > 0 && t >= seconds) break;
+    if (seconds > 0 && double(k) * m_period >= seconds) break;
     const auto deadline = m_t0 + k * period;
     wait_until(deadline, m_options.spin, realtime);
     const auto start = Clock::now();
     if (k > 0 && m_periods.size() < m_periods.capacity())
       m_periods.push_back(std::chrono::duration<float>(start - m_last_tick_start).count());
-    if (start - deadline >= period) ++m_missed;
+    if (start - deadline >= period) {
+      ++m_missed;
+      // A real-time thread never runs ticks back to back to catch up (it would hold its core
+      // until the kernel throttles it): it skips to the tick due now, the skipped ones missed.
+      if (realtime) {
+        const std::int64_t due = (start - m_t0) / period;
+        if (due > k) {
+          m_missed += std::size_t(due - k - 1);
+          k = due;
+        }
+      }
+    }
+    const double t = double(k) * m_period;
+    if (seconds > 0 && t >= seconds) break;
     m_last_tick_start = start;
     // Decoupled, the tick is its own watchdog; in lockstep the watchdog thread is.
     if (!with_step && k > 0 && heartbeat_stale(start)) trip();
@@ -418,7 +446,14 @@ void ServoLoop::physics_thread(double seconds) noexcept {
     if (seconds > 0 && t >= seconds) break;
     // Half a period after the tick that feeds it.
     wait_until(m_t0 + k * period + period / 2, false, realtime);
-    physics_step(t);
+    if (realtime) {  // behind by a period or more: skip to the step due now (never back to back)
+      const std::int64_t due = (Clock::now() - m_t0 - period / 2) / period;
+      if (due > k) {
+        k = due;
+        if (seconds > 0 && double(k) * m_period >= seconds) break;
+      }
+    }
+    physics_step(double(k) * m_period);
   }
 }
 
