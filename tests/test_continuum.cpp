@@ -296,7 +296,9 @@ TEST(Continuum, HomogeneousStrainRecoversTheMaterialConstants) {
       for (Index i = 0; i < m.num_nodes(); ++i) {
         const V3 p = m.rest_positions().row(i).transpose();
         const bool interior = (p.array() > 1e-9).all() && (p.array() < extent - 1e-9).all();
-        if (interior) EXPECT_LT(g.row(i).norm(), 1e-9 * face) << i;
+        if (interior) {
+          EXPECT_LT(g.row(i).norm(), 1e-9 * face) << i;
+        }
       }
     }
   }

@@ -189,7 +189,9 @@ void expect_identical(const TissueModel<double>& a, const TissueModel<double>& b
     EXPECT_EQ(p.first_tetrahedron, q.first_tetrahedron) << p.name;
     EXPECT_EQ(p.num_tetrahedra, q.num_tetrahedra) << p.name;
   }
-  if (compare_tetrahedra) EXPECT_TRUE(same_array(s.tetrahedra(), t.tetrahedra())) << "tetrahedra";
+  if (compare_tetrahedra) {
+    EXPECT_TRUE(same_array(s.tetrahedra(), t.tetrahedra())) << "tetrahedra";
+  }
   EXPECT_EQ(a.first_attachment_link, b.first_attachment_link);
   EXPECT_EQ(a.num_attachment_links, b.num_attachment_links);
 
