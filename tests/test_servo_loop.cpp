@@ -437,7 +437,7 @@ TEST(ServoLoop, DecoupledLocalModelLetsGoDuringAStallWhileRetreating) {
     if (sample.time >= stall_from + 0.002 && sample.time < stall_from + 0.038)
       low = std::min(low, sample.force.z());
   }
-  EXPECT_GT(held, 0.05);  // it was pressing (N, upward)
+  EXPECT_GT(held, 0.02);  // it was pressing (N, upward; 0.04-0.1 N, less under a sanitizer)
   EXPECT_GT(low, -0.03);  // and is not held back while it retreats
 }
 
