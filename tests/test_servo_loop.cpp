@@ -374,7 +374,7 @@ TEST(ServoLoop, DecoupledLocalModelCarriesTheForceThroughAStall) {
   fast.run_fast(0.7);
   ServoOptions o;
   o.threading = ServoOptions::Threading::decoupled;
-  o.watchdog_timeout = 0.2;  // the local model stands in for the late steps
+  o.local_model_timeout = 0.2;  // the local model stands in for the late steps
   ServoLoop rt(rt_scene.sim, rt_scene.contacts, rt_scene.tool, rt_dev, o);
   std::atomic<bool> stalled{false};
   rt.set_step_hook([&](double t) {
@@ -410,7 +410,7 @@ TEST(ServoLoop, DecoupledLocalModelLetsGoDuringAStallWhileRetreating) {
   ScriptedHapticDevice dev(script);
   ServoOptions o;
   o.threading = ServoOptions::Threading::decoupled;
-  o.watchdog_timeout = 0.2;
+  o.local_model_timeout = 0.2;
   ServoLoop loop(s.sim, s.contacts, s.tool, dev, o);
   // The stall begins at about 0.62 s of the tick's clock, read from the wall clock: the
   // simulation thread's own time lags behind the tick's on a slow (sanitised) build.
@@ -441,6 +441,32 @@ TEST(ServoLoop, DecoupledLocalModelLetsGoDuringAStallWhileRetreating) {
   EXPECT_GT(low, -0.03);  // and is not held back while it retreats
 }
 
+// Decoupled, the watchdog lets the local model stand in for a late step up to
+// local_model_timeout, and trips past it.
+TEST(ServoLoop, DecoupledWatchdogWaitsForTheLocalModelTimeout) {
+  auto trips_with_stall = [](int stall_ms) {
+    Scene s;
+    ScriptedHapticDevice dev(probe_script());
+    ServoOptions o;
+    o.threading = ServoOptions::Threading::decoupled;
+    o.watchdog_timeout = 1.5e-3;
+    o.local_model_timeout = 0.05;
+    ServoLoop loop(s.sim, s.contacts, s.tool, dev, o);
+    std::atomic<bool> stalled{false};
+    loop.set_step_hook([&](double t) {
+      if (!stalled && t >= 0.3) {
+        stalled = true;
+        std::this_thread::sleep_for(std::chrono::milliseconds(stall_ms));
+      }
+    });
+    loop.run_real_time(0.6);
+    return loop.stats().watchdog_trips;
+  };
+  EXPECT_GE(trips_with_stall(200), 1u);  // far past 50 ms: the force goes to zero
+  // 10 ms, far past the 1.5 ms watchdog_timeout but within the local model's 50 ms: no trip.
+  EXPECT_EQ(trips_with_stall(10), 0u);
+}
+
 TEST(ServoLoop, RejectsBadOptions) {
   Scene s;
   ScriptedHapticDevice dev;
@@ -465,6 +491,9 @@ TEST(ServoLoop, RejectsBadOptions) {
     two.sim.set_force_options(fo);
     EXPECT_THROW(ServoLoop(two.sim, two.contacts, two.tool, dev, o), Error);
   }
+  o = ServoOptions{};
+  o.local_model_timeout = -1;
+  EXPECT_THROW(ServoLoop(s.sim, s.contacts, s.tool, dev, o), Error);
   o = ServoOptions{};
   o.realtime_spin = 2e-3;  // longer than a period
   EXPECT_THROW(ServoLoop(s.sim, s.contacts, s.tool, dev, o), Error);

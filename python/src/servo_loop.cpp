@@ -26,6 +26,8 @@ for the loop's threads where the system allows), realtime_spin (s).)");
       .def_readwrite("ramp_time", &Opt::ramp_time, "s")
       .def_readwrite("watchdog_timeout", &Opt::watchdog_timeout, "s")
       .def_readwrite("recover_time", &Opt::recover_time, "s")
+      .def_readwrite("local_model_timeout", &Opt::local_model_timeout,
+                     "s the decoupled tick's local contact model may stand in for a late step")
       .def_readwrite("device_offset", &Opt::device_offset, "m")
       .def_readwrite("device_scale", &Opt::device_scale, "dimensionless")
       .def_readwrite("realtime_priority", &Opt::realtime_priority,

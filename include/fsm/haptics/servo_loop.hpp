@@ -46,6 +46,12 @@ struct ServoOptions {
   /// The force goes to zero when the simulation has not completed a step for this long (s), or
   /// when a step diverges (the simulation rolls it back).
   double watchdog_timeout{1.5e-3};
+  /// Decoupled: how long (s) the tick's local contact model may stand in for a simulation step
+  /// that is late before the watchdog zeroes the force (the larger of this and
+  /// watchdog_timeout applies). A step retried as half steps, or a busy second core, makes a
+  /// step a millisecond or two late; the local model keeps the force that of the tissue as the
+  /// last step left it. Lockstep ignores it (there the tick waits for the step).
+  double local_model_timeout{0.02};
   /// After a trip, the force ramps in again once the simulation has stepped healthily for this
   /// long (s); 0 keeps it at zero until rearm().
   double recover_time{0.1};

@@ -90,6 +90,8 @@ ServoLoop::ServoLoop(Simulation<double>& sim, collision::ContactSolver<double>& 
                 "gains, max_force and ramp_time non-negative; the rotation non-zero");
   if (o.watchdog_timeout <= m_period)
     throw Error("", "servo loop options", "watchdog_timeout must exceed one servo period");
+  if (!(o.local_model_timeout >= 0) || !std::isfinite(o.local_model_timeout))
+    throw Error("", "servo loop options", "local_model_timeout must be finite and non-negative");
   if (o.realtime_priority != 0 && (o.realtime_priority < 2 || o.realtime_priority > 98))
     throw Error("", "servo loop options",
                 "realtime_priority must be 0 (off) or 2 to 98, got " +
@@ -396,7 +398,11 @@ void ServoLoop::run_fast(double seconds) {
 bool ServoLoop::heartbeat_stale(Clock::time_point now) const noexcept {
   // Before the first step completes the heartbeat is the start time.
   const auto beat = m_t0 + std::chrono::nanoseconds(m_heartbeat_ns.load(std::memory_order_acquire));
-  return now - beat > std::chrono::duration<double>(m_options.watchdog_timeout);
+  // Decoupled, the local contact model stands in for a late step for local_model_timeout.
+  const double timeout =
+      m_local_model ? std::max(m_options.watchdog_timeout, m_options.local_model_timeout)
+                    : m_options.watchdog_timeout;
+  return now - beat > std::chrono::duration<double>(timeout);
 }
 
 void ServoLoop::servo_thread(double seconds, bool with_step) noexcept {
