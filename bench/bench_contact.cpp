@@ -214,15 +214,15 @@ BENCHMARK(BM_UterusSession)
     ->Iterations(1);
 
 // One 1 ms implicit step of the uterus with the probe pressing the body 1 mm past the sagged
-// surface (contacts in the solve), the tetrahedral parts on the link law (0) or the continuum law (1), the instrument's
-// contact stiffness_ratio 100 (default) or 10 (softer, cheaper to solve). One core. Counters: CG
-// iterations per step, contacts (instrument and part), the probe's force. The scale issue's
-// targets: 100 us (links) and 150 us (continuum).
-// The bundled uterus (tetrahedral parts on the link or the continuum law, drag 5/s) with the
-// capsule probe on the body: the model first sags under gravity for 0.5 s with the probe away,
-// then the probe's tip goes 1 mm past the sagged centre of the body's outermost sphere (a
-// tetrahedral part meets instruments at its spheres' centres: ContactOptions::
-// tetrahedral_surface). step() is one 1 ms step with contacts, settle() 0.3 s of them.
+// surface (contacts in the solve), the tetrahedral parts on the link law (0) or the continuum law
+// (1), the instrument's contact stiffness_ratio 100 (default) or 10 (softer, cheaper to solve). One
+// core. Counters: CG iterations per step, contacts (instrument and part), the probe's force. The
+// scale issue's targets: 100 us (links) and 150 us (continuum). The bundled uterus (tetrahedral
+// parts on the link or the continuum law, drag 5/s) with the capsule probe on the body: the model
+// first sags under gravity for 0.5 s with the probe away, then the probe's tip goes 1 mm past the
+// sagged centre of the body's outermost sphere (a tetrahedral part meets instruments at its
+// spheres' centres: ContactOptions:: tetrahedral_surface). step() is one 1 ms step with contacts,
+// settle() 0.3 s of them.
 struct PressedUterus {
   static Simulation<double> make(bool continuum) {
     SphereModel<double> m = uterus().spheres;
@@ -240,7 +240,8 @@ struct PressedUterus {
   }
   PressedUterus(bool continuum, double stiffness_ratio)
       : sim(make(continuum)), solver(sim.model(), sim.forces(), contact_options(stiffness_ratio)) {
-    support::CapsuleProbe cp{support::outermost_free_sphere(uterus().spheres, uterus().part("body"))};
+    support::CapsuleProbe cp{
+        support::outermost_free_sphere(uterus().spheres, uterus().part("body"))};
     solver.add_instrument(cp.instrument(-0.02));  // 2 cm away while the model sags
     for (int s = 0; s < 500; ++s) step();
     cp.site.centre = sim.model().positions().row(cp.site.sphere).transpose();

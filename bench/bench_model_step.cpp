@@ -67,8 +67,9 @@ int main(int argc, char** argv) {
   }
   if (path.empty() || (law != "links" && law != "continuum") || threads < 1 || steps < 1 ||
       !(tolerance > 0)) {
-    std::fprintf(stderr, "bench_model_step: a model file, --law links|continuum, --threads >= 1, "
-                         "--steps >= 1 and --tolerance > 0\n");
+    std::fprintf(stderr,
+                 "bench_model_step: a model file, --law links|continuum, --threads >= 1, "
+                 "--steps >= 1 and --tolerance > 0\n");
     return 2;
   }
   try {
@@ -116,7 +117,8 @@ int main(int argc, char** argv) {
     for (int s = 0; s < steps; ++s) {
       const auto t0 = std::chrono::steady_clock::now();
       const StepReport<double> r = step();
-      t[std::size_t(s)] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      t[std::size_t(s)] =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       iterations += r.solver_iterations;
     }
     for (Index k = 0; k < contacts.num_contacts(); ++k)
@@ -127,28 +129,30 @@ int main(int argc, char** argv) {
       return s / double(t.size());
     }();
     std::sort(t.begin(), t.end());
-    auto pct = [&](double q) { return t[std::min(t.size() - 1, std::size_t(q * double(t.size() - 1) + 0.5))]; };
+    auto pct = [&](double q) {
+      return t[std::min(t.size() - 1, std::size_t(q * double(t.size() - 1) + 0.5))];
+    };
     const double it = double(iterations) / double(steps);
     if (json)
-      std::printf("{\"model\": \"%s\", \"spheres\": %d, \"links\": %d, \"tetrahedra\": %d, "
-                  "\"law\": \"%s\", \"threads\": %d, \"tolerance\": %g, \"probe\": %s, "
-                  "\"probe_contacts\": %d, \"contacts\": %d, \"steps\": %d, \"mean_us\": %.1f, "
-                  "\"p50_us\": %.1f, \"p99_us\": %.1f, \"max_us\": %.1f, \"cg_iterations\": %.2f, "
-                  "\"recovered\": %ld, \"diverged\": %ld}\n",
-                  path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
-                  int(sim.model().num_tetrahedra()), law.c_str(), threads, tolerance,
-                  probe ? "true" : "false", int(probe_contacts), int(contacts.num_contacts()),
-                  steps, mean * 1e6, pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it,
-                  recovered, diverged);
+      std::printf(
+          "{\"model\": \"%s\", \"spheres\": %d, \"links\": %d, \"tetrahedra\": %d, "
+          "\"law\": \"%s\", \"threads\": %d, \"tolerance\": %g, \"probe\": %s, "
+          "\"probe_contacts\": %d, \"contacts\": %d, \"steps\": %d, \"mean_us\": %.1f, "
+          "\"p50_us\": %.1f, \"p99_us\": %.1f, \"max_us\": %.1f, \"cg_iterations\": %.2f, "
+          "\"recovered\": %ld, \"diverged\": %ld}\n",
+          path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
+          int(sim.model().num_tetrahedra()), law.c_str(), threads, tolerance,
+          probe ? "true" : "false", int(probe_contacts), int(contacts.num_contacts()), steps,
+          mean * 1e6, pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it, recovered, diverged);
     else
-      std::printf("%s: %d spheres, %d links, %d tetrahedra; %s law, %d thread(s), CG to %g; "
-                  "probe on '%s' (%d contacts of %d)\n  1 ms step: mean %.1f us, p50 %.1f, p99 "
-                  "%.1f, max %.1f; %.2f CG iterations; %ld steps retried as half steps, %ld diverged\n",
-                  path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
-                  int(sim.model().num_tetrahedra()), law.c_str(), threads, tolerance,
-                  target->name.c_str(), int(probe_contacts), int(contacts.num_contacts()),
-                  mean * 1e6, pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it, recovered,
-                  diverged);
+      std::printf(
+          "%s: %d spheres, %d links, %d tetrahedra; %s law, %d thread(s), CG to %g; "
+          "probe on '%s' (%d contacts of %d)\n  1 ms step: mean %.1f us, p50 %.1f, p99 "
+          "%.1f, max %.1f; %.2f CG iterations; %ld steps retried as half steps, %ld diverged\n",
+          path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
+          int(sim.model().num_tetrahedra()), law.c_str(), threads, tolerance, target->name.c_str(),
+          int(probe_contacts), int(contacts.num_contacts()), mean * 1e6, pct(0.5) * 1e6,
+          pct(0.99) * 1e6, t.back() * 1e6, it, recovered, diverged);
     if (probe && probe_contacts == 0) {
       std::fprintf(stderr, "bench_model_step: the probe does not touch the tissue\n");
       return 1;

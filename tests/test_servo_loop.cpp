@@ -261,6 +261,21 @@ std::pair<int, int> scheduling() {
   return {policy, p.sched_priority};
 }
 
+// Records the scheduling of the thread that runs `loop`'s first simulation step.
+struct StepScheduling {
+  std::atomic<int> policy{-1}, priority{-1};
+  std::atomic<bool> seen{false};
+  explicit StepScheduling(ServoLoop& loop) {
+    loop.set_step_hook([this](double) {
+      if (!seen.exchange(true)) {
+        const auto [pol, pri] = scheduling();
+        policy = pol;
+        priority = pri;
+      }
+    });
+  }
+};
+
 // Real-time scheduling where the system grants it: the servo thread runs under SCHED_FIFO at the
 // priority asked (the step hook runs on it in lockstep), the run gives the same force curve bit
 // for bit as run_fast, stats() says whether it was granted, and run_real_time gives its caller's
@@ -276,22 +291,14 @@ TEST(ServoLoop, RealTimePriorityIsTakenWhereGrantedAndGivenBack) {
   o.watchdog_timeout = 0.05;
   o.realtime_priority = 20;
   ServoLoop rt(rt_scene.sim, rt_scene.contacts, rt_scene.tool, rt_dev, o);
-  std::atomic<int> policy{-1}, priority{-1};
-  std::atomic<bool> seen{false};
-  rt.set_step_hook([&](double) {
-    if (!seen.exchange(true)) {
-      const auto [pol, pri] = scheduling();
-      policy = pol;
-      priority = pri;
-    }
-  });
+  StepScheduling step(rt);
   rt.run_real_time(0.8);
   EXPECT_EQ(rt.stats().realtime, allowed);
   if (allowed) {
-    EXPECT_EQ(policy.load(), SCHED_FIFO);
-    EXPECT_EQ(priority.load(), 20);
+    EXPECT_EQ(step.policy.load(), SCHED_FIFO);
+    EXPECT_EQ(step.priority.load(), 20);
   } else {
-    EXPECT_EQ(policy.load(), before.first);
+    EXPECT_EQ(step.policy.load(), before.first);
   }
   EXPECT_EQ(scheduling(), before) << "run_real_time kept its caller's thread real-time";
   ASSERT_EQ(rt.stats().watchdog_trips, 0u) << "the machine stalled the loop for > 50 ms";
@@ -338,23 +345,15 @@ TEST(ServoLoop, DecoupledSimulationThreadRunsOneRealTimePriorityBelowTheTick) {
   o.watchdog_timeout = 0.05;
   o.realtime_priority = 30;
   ServoLoop loop(s.sim, s.contacts, s.tool, dev, o);
-  std::atomic<int> policy{-1}, priority{-1};
-  std::atomic<bool> seen{false};
-  loop.set_step_hook([&](double) {
-    if (!seen.exchange(true)) {
-      const auto [pol, pri] = scheduling();
-      policy = pol;
-      priority = pri;
-    }
-  });
+  StepScheduling step(loop);
   loop.run_real_time(0.3);
   EXPECT_EQ(loop.stats().realtime, allowed);
   EXPECT_GE(loop.stats().steps, 1u);
   if (allowed) {
     EXPECT_EQ(dev.policy.load(), SCHED_FIFO);  // the tick
     EXPECT_EQ(dev.priority.load(), 30);
-    EXPECT_EQ(policy.load(), SCHED_FIFO);
-    EXPECT_EQ(priority.load(), 29);
+    EXPECT_EQ(step.policy.load(), SCHED_FIFO);
+    EXPECT_EQ(step.priority.load(), 29);
   }
 }
 #endif
@@ -366,8 +365,9 @@ TEST(ServoLoop, DecoupledSimulationThreadRunsOneRealTimePriorityBelowTheTick) {
 // (which would pull back with about k_c x 0.5 mm = 0.2 N by its end).
 TEST(ServoLoop, DecoupledLocalModelCarriesTheForceThroughAStall) {
   // Far above the block (top at 10 mm): no contact at all.
-  const std::vector<Waypoint> script{{0.0, V3(0.01, 0.01, 0.04), Eigen::Quaterniond::Identity(), 0},
-                                     {0.6, V3(0.01, 0.01, 0.03), Eigen::Quaterniond::Identity(), 0}};
+  const std::vector<Waypoint> script{
+      {0.0, V3(0.01, 0.01, 0.04), Eigen::Quaterniond::Identity(), 0},
+      {0.6, V3(0.01, 0.01, 0.03), Eigen::Quaterniond::Identity(), 0}};
   Scene fast_scene, rt_scene;
   ScriptedHapticDevice fast_dev(script), rt_dev(script);
   ServoLoop fast(fast_scene.sim, fast_scene.contacts, fast_scene.tool, fast_dev);
@@ -403,10 +403,11 @@ TEST(ServoLoop, DecoupledLocalModelCarriesTheForceThroughAStall) {
 TEST(ServoLoop, DecoupledLocalModelLetsGoDuringAStallWhileRetreating) {
   Scene s;
   // Down 2 mm into the block (top at 10 mm), held, then back up at 25 mm/s.
-  const std::vector<Waypoint> script{{0.0, V3(0.01, 0.01, 0.016), Eigen::Quaterniond::Identity(), 0},
-                                     {0.3, V3(0.01, 0.01, 0.011), Eigen::Quaterniond::Identity(), 0},
-                                     {0.6, V3(0.01, 0.01, 0.011), Eigen::Quaterniond::Identity(), 0},
-                                     {0.8, V3(0.01, 0.01, 0.016), Eigen::Quaterniond::Identity(), 0}};
+  const std::vector<Waypoint> script{
+      {0.0, V3(0.01, 0.01, 0.016), Eigen::Quaterniond::Identity(), 0},
+      {0.3, V3(0.01, 0.01, 0.011), Eigen::Quaterniond::Identity(), 0},
+      {0.6, V3(0.01, 0.01, 0.011), Eigen::Quaterniond::Identity(), 0},
+      {0.8, V3(0.01, 0.01, 0.016), Eigen::Quaterniond::Identity(), 0}};
   ScriptedHapticDevice dev(script);
   ServoOptions o;
   o.threading = ServoOptions::Threading::decoupled;

@@ -46,8 +46,8 @@ struct Args {
   std::string model;
   bool json{false};
   bool render{true};
-  int stress{0};           // competing busy processes during the session
-  int realtime{0};         // SCHED_FIFO priority of the servo loop's threads; 0: none
+  int stress{0};    // competing busy processes during the session
+  int realtime{0};  // SCHED_FIFO priority of the servo loop's threads; 0: none
   std::string threading{"lockstep"};
   std::string export_dir;  // ParaView time series; empty: none
   double export_hz{10};

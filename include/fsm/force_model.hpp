@@ -34,14 +34,14 @@ enum class JacobianForm {
 /// they act through the step as the tangent plane at detection: the penetration is
 /// \f$\delta(\mathbf{x}) = \delta_0 - \mathbf{n}\cdot(\Delta\mathbf{x}_i - \Delta\mathbf{x}_j)\f$
 /// (displacements since detection; \f$j\f$ the other sphere of a part contact), the normal force
-/// \f$f_n = \max(0, k\,s(\delta) - c\,s'(\delta)\,\mathbf{n}\cdot\mathbf{v}_{rel})\f$ never pulls, and
-/// regularised Coulomb friction opposes the slip. The onset \f$s\f$ is \f$s(\delta) = \delta\f$ (the
-/// plain penalty) unless `onset` \f$\varepsilon > 0\f$: then \f$s = \delta^2 / 2\varepsilon\f$ below
-/// \f$\varepsilon\f$ and \f$\delta - \varepsilon/2\f$ beyond, continuous with its slope, so that a
-/// contact that sits at its threshold (parts touching at rest) is barely stiff while it barely
-/// touches. The damping ramps in with the slope. An instrument moving with `surface_velocity` deepens the
-/// contact by \f$h\,\mathbf{n}\cdot\mathbf{v}_s\f$ over a step, which implicit Euler takes into
-/// its solve (docs/physics.md section 8).
+/// \f$f_n = \max(0, k\,s(\delta) - c\,s'(\delta)\,\mathbf{n}\cdot\mathbf{v}_{rel})\f$ never pulls,
+/// and regularised Coulomb friction opposes the slip. The onset \f$s\f$ is \f$s(\delta) = \delta\f$
+/// (the plain penalty) unless `onset` \f$\varepsilon > 0\f$: then \f$s = \delta^2 / 2\varepsilon\f$
+/// below \f$\varepsilon\f$ and \f$\delta - \varepsilon/2\f$ beyond, continuous with its slope, so
+/// that a contact that sits at its threshold (parts touching at rest) is barely stiff while it
+/// barely touches. The damping ramps in with the slope. An instrument moving with
+/// `surface_velocity` deepens the contact by \f$h\,\mathbf{n}\cdot\mathbf{v}_s\f$ over a step,
+/// which implicit Euler takes into its solve (docs/physics.md section 8).
 template <typename Scalar>
 struct PenaltyContact {
   Index node{-1};        ///< The sphere pushed.
@@ -51,10 +51,10 @@ struct PenaltyContact {
   Vector3<Scalar> point{Vector3<Scalar>::Zero()};    ///< Contact point (m), for torques.
   Scalar depth{0};                                   ///< Penetration at detection (m).
   Scalar stiffness{0};                               ///< k (N/m).
-  Scalar onset{0};  ///< \f$\varepsilon\f$ (m): the depth over which the law ramps in; 0 = none.
-  Scalar damping{0};                                 ///< c (N s/m), along the normal.
-  Scalar friction{0};                                ///< Coulomb coefficient.
-  Scalar friction_speed{Scalar(1e-3)};               ///< Regularisation speed (m/s).
+  Scalar onset{0};     ///< \f$\varepsilon\f$ (m): the depth over which the law ramps in; 0 = none.
+  Scalar damping{0};   ///< c (N s/m), along the normal.
+  Scalar friction{0};  ///< Coulomb coefficient.
+  Scalar friction_speed{Scalar(1e-3)};                        ///< Regularisation speed (m/s).
   Vector3<Scalar> surface_velocity{Vector3<Scalar>::Zero()};  ///< Instrument surface (m/s).
   Vector3<Scalar> node_start{Vector3<Scalar>::Zero()};        ///< `node`'s position at detection.
   Vector3<Scalar> other_start{Vector3<Scalar>::Zero()};       ///< `other`'s position at detection.

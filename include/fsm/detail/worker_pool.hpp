@@ -31,8 +31,7 @@ class WorkerPool {
  public:
   /// @param threads the calling thread plus threads - 1 helpers, started here (at least 1)
   /// @param spin how long an idle helper spins before it sleeps
-  explicit WorkerPool(int threads,
-                      std::chrono::microseconds spin = std::chrono::microseconds(2000))
+  explicit WorkerPool(int threads, std::chrono::microseconds spin = std::chrono::microseconds(2000))
       : m_size(std::max(threads, 1)), m_spin(spin) {
     m_threads.reserve(std::size_t(m_size - 1));
     try {

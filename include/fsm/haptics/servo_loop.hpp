@@ -196,8 +196,11 @@ class ServoLoop {
     Vector3<double> position{Vector3<double>::Zero()}, velocity{Vector3<double>::Zero()};
     Eigen::Matrix3d stiffness{Eigen::Matrix3d::Zero()}, damping{Eigen::Matrix3d::Zero()};
   };
+  // The instrument's last wrench, linearised about the physics side's proxy state.
+  [[nodiscard]] TissueSample tissue_sample() const noexcept;
   // One backward-Euler step of the proxy under the coupling to `d` and the linearised tissue.
-  void advance_proxy(ProxySample& p, const DeviceSample& d, const TissueSample& tissue) const noexcept;
+  void advance_proxy(ProxySample& p, const DeviceSample& d,
+                     const TissueSample& tissue) const noexcept;
 
   /// Resets the run's state; `local_model`: the tick advances the proxy (decoupled real time).
   void begin(bool local_model);

@@ -486,8 +486,8 @@ void ForceModel<Scalar>::evaluate(const SphereModel<Scalar>& model, const ConstP
       if (lo < hi) kernel_range(lo, hi, out);
     }
   };
-  detail::scatter_links(m_pool.get(), model.num_nodes(), model.num_links(), f.data(),
-                        m_scratch, init, kernel);
+  detail::scatter_links(m_pool.get(), model.num_nodes(), model.num_links(), f.data(), m_scratch,
+                        init, kernel);
   m_continuum.add_forces(xp, vp, f.data());
   for (Index k = 0; k < m_num_contacts; ++k) {
     const PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
@@ -608,8 +608,8 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
         B[4] = h2 * beta + (along ? Scalar(0) : h * L.kd[l]);
       }
     };
-    detail::scatter_links(m_pool.get(), model.num_nodes(), model.num_links(), rhs.data(),
-                          m_scratch, init, kernel);
+    detail::scatter_links(m_pool.get(), model.num_nodes(), model.num_links(), rhs.data(), m_scratch,
+                          init, kernel);
     // Jacobi diagonal: m_i + sum over links of diag(B_l), on both ends.
     // The drag's Jacobian -gamma m I joins the mass: M (1 + h gamma).
     auto init_diag = [&](Index i, Scalar* out) {
@@ -764,8 +764,8 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
       if (lo < hi) kernel_range(lo, hi, out);
     }
   };
-  detail::scatter_links(m_pool.get(), model.num_nodes(), model.num_links(), y.data(),
-                        m_scratch, init, kernel);
+  detail::scatter_links(m_pool.get(), model.num_nodes(), model.num_links(), y.data(), m_scratch,
+                        init, kernel);
   m_continuum.apply_implicit(pp, y.data());
   for (Index k = 0; k < m_num_contacts; ++k) {
     const PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
@@ -837,8 +837,8 @@ typename ForceModel<Scalar>::SparseMatrix ForceModel<Scalar>::stiffness_matrix(
     }
   };
   contact_pairs([&](const PenaltyContact<Scalar>& c, Scalar, const Vector3<Scalar>&) {
-    const Scalar slope =
-        detail::contact_slope(c, detail::contact_depth(c, x, detail::surface_advance(c, m_contact_time)));
+    const Scalar slope = detail::contact_slope(
+        c, detail::contact_depth(c, x, detail::surface_advance(c, m_contact_time)));
     return Matrix3<Scalar>(slope * c.stiffness * c.normal * c.normal.transpose());
   });
   if (!m_continuum.empty()) {

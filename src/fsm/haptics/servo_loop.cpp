@@ -93,9 +93,9 @@ ServoLoop::ServoLoop(Simulation<double>& sim, collision::ContactSolver<double>& 
   if (!(o.local_model_timeout >= 0) || !std::isfinite(o.local_model_timeout))
     throw Error("", "servo loop options", "local_model_timeout must be finite and non-negative");
   if (o.realtime_priority != 0 && (o.realtime_priority < 2 || o.realtime_priority > 98))
-    throw Error("", "servo loop options",
-                "realtime_priority must be 0 (off) or 2 to 98, got " +
-                    std::to_string(o.realtime_priority));
+    throw Error(
+        "", "servo loop options",
+        "realtime_priority must be 0 (off) or 2 to 98, got " + std::to_string(o.realtime_priority));
   if (!(o.realtime_spin >= 0) || !(o.realtime_spin <= m_period))
     throw Error("", "servo loop options", "realtime_spin must be between 0 and one servo period");
   if (o.realtime_priority > 0 && sim.forces().options().threads > 1)
@@ -124,10 +124,9 @@ void ServoLoop::wait_until(Clock::time_point deadline, bool spin, bool realtime)
   // scheduler (measured), so the servo thread spins to the deadline when asked; otherwise it
   // sleeps to within 400 us and spins. A real-time thread wakes at once (it preempts every
   // default-scheduler thread) and must not spin whole periods (the kernel would throttle it).
-  const auto margin =
-      realtime ? std::chrono::duration_cast<Clock::duration>(
-                     std::chrono::duration<double>(m_options.realtime_spin))
-               : Clock::duration(std::chrono::microseconds(400));
+  const auto margin = realtime ? std::chrono::duration_cast<Clock::duration>(
+                                     std::chrono::duration<double>(m_options.realtime_spin))
+                               : Clock::duration(std::chrono::microseconds(400));
   if ((realtime || !spin) && Clock::now() + margin < deadline)
     std::this_thread::sleep_until(deadline - margin);
   while (Clock::now() < deadline) {
@@ -268,6 +267,17 @@ void ServoLoop::device_tick(double t) noexcept {
   ++m_ticks;
 }
 
+ServoLoop::TissueSample ServoLoop::tissue_sample() const noexcept {
+  const auto& w = m_contacts.wrench(m_instrument);
+  TissueSample t;
+  t.force = w.force;
+  t.stiffness = w.stiffness;
+  t.damping = w.damping;
+  t.position = m_proxy.position;
+  t.velocity = m_proxy.velocity;
+  return t;
+}
+
 void ServoLoop::advance_proxy(ProxySample& p, const DeviceSample& d,
                               const TissueSample& tissue) const noexcept {
   // m dv/dt = k (x_d - x) + b (v_d - v) + f_tissue, backward Euler in the coupling and in the
@@ -281,9 +291,9 @@ void ServoLoop::advance_proxy(ProxySample& p, const DeviceSample& d,
   const Eigen::Matrix3d A = (m + h * b + h * h * k) * Eigen::Matrix3d::Identity() +
                             h * tissue.damping + h * h * tissue.stiffness;
   const Vector3<double> rhs =
-      m * p.velocity + h * (k * (d.position - p.position) + b * d.velocity + tissue.force -
-                            tissue.stiffness * (p.position - tissue.position) +
-                            tissue.damping * tissue.velocity);
+      m * p.velocity +
+      h * (k * (d.position - p.position) + b * d.velocity + tissue.force -
+           tissue.stiffness * (p.position - tissue.position) + tissue.damping * tissue.velocity);
   // A is symmetric positive definite (m > 0, K and C positive semi-definite).
   Vector3<double> v = A.llt().solve(rhs);
   // The local model (decoupled: the same linearisation for many ticks) is one-sided: where it
@@ -313,14 +323,7 @@ void ServoLoop::physics_step(double t) noexcept {
     m_proxy = m_tick_proxy_buffer.front();
   } else {
     // Lockstep: the tissue linearised about the last step's end, which is where the proxy is.
-    const auto& w = m_contacts.wrench(m_instrument);
-    TissueSample tissue;
-    tissue.force = w.force;
-    tissue.stiffness = w.stiffness;
-    tissue.damping = w.damping;
-    tissue.position = m_proxy.position;
-    tissue.velocity = m_proxy.velocity;
-    advance_proxy(m_proxy, d, tissue);
+    advance_proxy(m_proxy, d, tissue_sample());
   }
   ins.pose.position = m_proxy.position;
   ins.pose.orientation = d.orientation;
@@ -339,13 +342,7 @@ void ServoLoop::physics_step(double t) noexcept {
     m_healthy_steps.fetch_add(1, std::memory_order_relaxed);
   }
   if (m_local_model) {
-    const auto& w = m_contacts.wrench(m_instrument);
-    TissueSample& tissue = m_tissue_buffer.back();
-    tissue.force = w.force;
-    tissue.stiffness = w.stiffness;
-    tissue.damping = w.damping;
-    tissue.position = m_proxy.position;
-    tissue.velocity = m_proxy.velocity;
+    m_tissue_buffer.back() = tissue_sample();
     m_tissue_buffer.publish();
   } else {
     m_proxy_buffer.back() = m_proxy;
@@ -399,9 +396,9 @@ bool ServoLoop::heartbeat_stale(Clock::time_point now) const noexcept {
   // Before the first step completes the heartbeat is the start time.
   const auto beat = m_t0 + std::chrono::nanoseconds(m_heartbeat_ns.load(std::memory_order_acquire));
   // Decoupled, the local contact model stands in for a late step for local_model_timeout.
-  const double timeout =
-      m_local_model ? std::max(m_options.watchdog_timeout, m_options.local_model_timeout)
-                    : m_options.watchdog_timeout;
+  const double timeout = m_local_model
+                             ? std::max(m_options.watchdog_timeout, m_options.local_model_timeout)
+                             : m_options.watchdog_timeout;
   return now - beat > std::chrono::duration<double>(timeout);
 }
 

@@ -18,8 +18,8 @@ ContactSolver<Scalar>::ContactSolver(const SphereModel<Scalar>& model,
   if (!(o.stiffness_ratio > 0) || !std::isfinite(o.stiffness_ratio) ||
       !(o.part_stiffness_ratio > 0) || !std::isfinite(o.part_stiffness_ratio) ||
       !(o.damping_ratio >= 0) || !std::isfinite(o.damping_ratio) || !(o.friction_speed > 0) ||
-      !(o.part_friction >= 0) || !(o.part_contact_onset >= 0) || !(o.part_contact_onset < 1) || o.max_contacts < 1 || !(o.verlet_skin >= 0) ||
-      !std::isfinite(o.verlet_skin))
+      !(o.part_friction >= 0) || !(o.part_contact_onset >= 0) || !(o.part_contact_onset < 1) ||
+      o.max_contacts < 1 || !(o.verlet_skin >= 0) || !std::isfinite(o.verlet_skin))
     throw Error("", "contact options",
                 "stiffness_ratio, part_stiffness_ratio and friction_speed must be positive, "
                 "damping_ratio and "
