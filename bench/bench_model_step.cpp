@@ -7,7 +7,8 @@
 // bundled uterus, the VHF left adnexa, a pelvis-sized model: docs/benchmarks.md).
 //
 //   bench_model_step MODEL.fsm [--law links|continuum] [--threads N] [--tolerance TOL]
-//                    [--steps N] [--no-probe] [--continuum-part NAME] [--json]
+//                    [--steps N] [--no-probe] [--continuum-part NAME]
+//                    [--element-tangent-quality Q] [--json]
 //
 // --law continuum puts every tetrahedral part on the continuum law, or only NAME with
 // --continuum-part.
@@ -31,6 +32,7 @@ int main(int argc, char** argv) {
   std::string path, law = "links", only;
   int threads = 1, steps = 2000;
   double tolerance = 1e-3;
+  double element_tangent_quality = ForceModel<double>::Options{}.element_tangent_quality;
   bool probe = true, json = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -51,6 +53,8 @@ int main(int argc, char** argv) {
       steps = std::atoi(value().c_str());
     else if (a == "--continuum-part")
       only = value();
+    else if (a == "--element-tangent-quality")
+      element_tangent_quality = std::atof(value().c_str());
     else if (a == "--no-probe")
       probe = false;
     else if (a == "--json")
@@ -60,13 +64,14 @@ int main(int argc, char** argv) {
     else {
       std::fprintf(stderr,
                    "usage: %s MODEL.fsm [--law links|continuum] [--threads N] [--tolerance TOL] "
-                   "[--steps N] [--no-probe] [--continuum-part NAME] [--json]\n",
+                   "[--steps N] [--no-probe] [--continuum-part NAME] "
+                   "[--element-tangent-quality Q] [--json]\n",
                    argv[0]);
       return 2;
     }
   }
   if (path.empty() || (law != "links" && law != "continuum") || threads < 1 || steps < 1 ||
-      !(tolerance > 0)) {
+      !(tolerance > 0) || !(element_tangent_quality >= 0)) {
     std::fprintf(stderr,
                  "bench_model_step: a model file, --law links|continuum, --threads >= 1, "
                  "--steps >= 1 and --tolerance > 0\n");
@@ -87,6 +92,7 @@ int main(int argc, char** argv) {
     Simulation<double>::Options so;
     so.forces.drag = 5;
     so.forces.threads = threads;
+    so.forces.element_tangent_quality = element_tangent_quality;
     so.divergence.max_substep_halvings = 2;  // as the demo and servo_latency
     Simulation<double> sim(std::move(spheres), so);
     ImplicitEulerIntegrator<double>::Options io;
@@ -95,7 +101,7 @@ int main(int argc, char** argv) {
     collision::ContactSolver<double> contacts(sim.model(), sim.forces());
     support::CapsuleProbe cp{support::outermost_free_sphere(model.spheres, *target)};
     contacts.add_instrument(cp.instrument(-0.02));  // away while the model sags
-    long diverged = 0, recovered = 0;
+    long diverged = 0, recovered = 0, diverged_before = 0;
     auto step = [&] {
       contacts.compute(sim.model(), sim.forces());
       const StepReport<double> r = sim.step(1e-3);
@@ -110,7 +116,8 @@ int main(int argc, char** argv) {
       cp.press(contacts, 0, cp.site.radius + 0.001);
     }
     for (int s = 0; s < 300; ++s) step();
-    diverged = recovered = 0;  // count the timed steps only
+    diverged_before = diverged;  // while sagging and pressing
+    diverged = recovered = 0;    // count the timed steps only
     std::vector<double> t(std::size_t(steps), 0.0);
     long iterations = 0;
     Index probe_contacts = 0;
@@ -139,20 +146,23 @@ int main(int argc, char** argv) {
           "\"law\": \"%s\", \"threads\": %d, \"tolerance\": %g, \"probe\": %s, "
           "\"probe_contacts\": %d, \"contacts\": %d, \"steps\": %d, \"mean_us\": %.1f, "
           "\"p50_us\": %.1f, \"p99_us\": %.1f, \"max_us\": %.1f, \"cg_iterations\": %.2f, "
-          "\"recovered\": %ld, \"diverged\": %ld}\n",
+          "\"recovered\": %ld, \"diverged\": %ld, \"diverged_before_timing\": %ld, "
+          "\"element_tangent_quality\": %g}\n",
           path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
           int(sim.model().num_tetrahedra()), law.c_str(), threads, tolerance,
           probe ? "true" : "false", int(probe_contacts), int(contacts.num_contacts()), steps,
-          mean * 1e6, pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it, recovered, diverged);
+          mean * 1e6, pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it, recovered, diverged,
+          diverged_before, element_tangent_quality);
     else
       std::printf(
           "%s: %d spheres, %d links, %d tetrahedra; %s law, %d thread(s), CG to %g; "
           "probe on '%s' (%d contacts of %d)\n  1 ms step: mean %.1f us, p50 %.1f, p99 "
-          "%.1f, max %.1f; %.2f CG iterations; %ld steps retried as half steps, %ld diverged\n",
+          "%.1f, max %.1f; %.2f CG iterations; %ld steps retried as half steps, %ld diverged "
+          "(%ld before timing)\n",
           path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
           int(sim.model().num_tetrahedra()), law.c_str(), threads, tolerance, target->name.c_str(),
           int(probe_contacts), int(contacts.num_contacts()), mean * 1e6, pct(0.5) * 1e6,
-          pct(0.99) * 1e6, t.back() * 1e6, it, recovered, diverged);
+          pct(0.99) * 1e6, t.back() * 1e6, it, recovered, diverged, diverged_before);
     if (probe && probe_contacts == 0) {
       std::fprintf(stderr, "bench_model_step: the probe does not touch the tissue\n");
       return 1;

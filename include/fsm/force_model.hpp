@@ -103,6 +103,13 @@ class ForceModel {
     /// mass-proportional damping that stands in for the tissue and fluid around an organ. It damps
     /// rigid motion (a tube swinging like a pendulum), which link damping cannot. 0 = none.
     Scalar drag{0};
+    /// Continuum elements whose shape quality (6 sqrt(2) V / l_rms^3 at rest: 1 for a regular
+    /// tetrahedron, 0 for a flat one) is below this get an exact-shape element tangent in the
+    /// implicit solve instead of springs along their edges, which cannot resist a sliver's apex
+    /// moving across its base (docs/physics.md section 11). 0 = none, above 1 = every element
+    /// (each costs about five times its edge springs per solver iteration).
+    Scalar element_tangent_quality{
+        Scalar(detail::ContinuumTerm<Scalar>::default_element_tangent_quality)};
   };
 
   ForceModel() = default;
@@ -269,6 +276,11 @@ class ForceModel {
   [[nodiscard]] std::vector<Scalar> node_stiffness(const SphereModel<Scalar>& model) const;
 
   /// @brief Continuum elements with \f$J \le 0\f$ (inverted) at x.
+  /// @brief Continuum elements that had the element tangent at the last evaluation (poorly shaped
+  /// or strongly strained ones, Options::element_tangent_quality).
+  [[nodiscard]] Index continuum_element_tangents() const noexcept {
+    return Index(m_continuum.num_element_tangents());
+  }
   [[nodiscard]] Index inverted_elements(const ConstPositionsRef& x) const noexcept {
     return m_continuum.inverted(x.data());
   }

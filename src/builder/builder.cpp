@@ -345,6 +345,8 @@ void fill_parts(Build& b) {
         fid.feature_angle_deg = out.tetra.feature_angle_deg;
         fid.feature_edges = out.tetra.feature_edges;
         fid.feature_corners = out.tetra.feature_corners;
+        fid.dropped_cells = out.tetra.dropped_cells;
+        fid.dropped_volume = out.tetra.dropped_volume;
         for (std::string& w : detail::fidelity_warnings(fid, spec.radius))
           out.report.warnings.push_back(std::move(w));
         break;
@@ -827,7 +829,9 @@ std::string BuildReport::json(bool wall_times) const {
                        {"tolerance", detail::kFidelityTolerance},
                        {"feature_angle_deg", f.feature_angle_deg},
                        {"feature_edges", f.feature_edges},
-                       {"feature_corners", f.feature_corners}};
+                       {"feature_corners", f.feature_corners},
+                       {"dropped_cells", f.dropped_cells},
+                       {"dropped_volume_m3", f.dropped_volume}};
     }
     for (const auto& m : p.meshes) {
       q["meshes"].push_back({{"file", m.file},

@@ -12,8 +12,10 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <unordered_map>
 
 #include "cgal_mesh.hpp"
@@ -185,6 +187,67 @@ std::vector<std::vector<K::Point_3>> sharp_polylines(SurfaceMesh& sm, double ang
 
 }  // namespace
 
+namespace detail {
+
+void drop_hanging_pieces(std::vector<Eigen::Vector3d>& points,
+                         std::vector<std::array<Index, 4>>& tets, Index& removed_cells,
+                         double& removed_volume) {
+  removed_cells = 0;
+  removed_volume = 0;
+  const std::size_t nt = tets.size();
+  std::vector<std::size_t> parent(nt);
+  for (std::size_t t = 0; t < nt; ++t) parent[t] = t;
+  auto find = [&](std::size_t t) {
+    while (parent[t] != t) t = parent[t] = parent[parent[t]];
+    return t;
+  };
+  std::map<std::array<Index, 3>, std::size_t> first_cell;  // face -> a cell that has it
+  for (std::size_t t = 0; t < nt; ++t)
+    for (int skip = 0; skip < 4; ++skip) {
+      std::array<Index, 3> f{};
+      for (int k = 0, j = 0; k < 4; ++k)
+        if (k != skip) f[std::size_t(j++)] = tets[t][std::size_t(k)];
+      std::sort(f.begin(), f.end());
+      auto [it, inserted] = first_cell.emplace(f, t);
+      if (!inserted) parent[find(t)] = find(it->second);
+    }
+  auto volume = [&](const std::array<Index, 4>& c) {
+    const Eigen::Vector3d a = points[std::size_t(c[0])];
+    return std::abs((points[std::size_t(c[1])] - a)
+                        .cross(points[std::size_t(c[2])] - a)
+                        .dot(points[std::size_t(c[3])] - a)) /
+           6.0;
+  };
+  std::vector<double> component_volume(nt, 0.0);
+  for (std::size_t t = 0; t < nt; ++t) component_volume[find(t)] += volume(tets[t]);
+  const double largest = *std::max_element(component_volume.begin(), component_volume.end());
+  std::vector<std::array<Index, 4>> kept;
+  kept.reserve(nt);
+  for (std::size_t t = 0; t < nt; ++t) {
+    if (component_volume[find(t)] >= kMinComponentShare * largest) {
+      kept.push_back(tets[t]);
+    } else {
+      ++removed_cells;
+      removed_volume += volume(tets[t]);
+    }
+  }
+  if (removed_cells == 0) return;
+  std::vector<Index> id(points.size(), -1);
+  std::vector<Eigen::Vector3d> used;
+  for (auto& c : kept)
+    for (Index& v : c) {
+      if (id[std::size_t(v)] < 0) {
+        id[std::size_t(v)] = Index(used.size());
+        used.push_back(points[std::size_t(v)]);
+      }
+      v = id[std::size_t(v)];
+    }
+  points = std::move(used);
+  tets = std::move(kept);
+}
+
+}  // namespace detail
+
 QualityStats measure_quality(const TetrahedralMesh<double>& mesh, const MetricField& metric) {
   QualityStats q;
   q.tetrahedra = Index(mesh.tetrahedra.rows());
@@ -264,6 +327,8 @@ TetraFilling fill_tetrahedral(const TriangleMesh<double>& surface, const MetricF
     out.feature_corners = Index(c3t3.number_of_corners());
     cells_of(c3t3, from_unit, points, tets);
   }
+  if (!tets.empty())
+    detail::drop_hanging_pieces(points, tets, out.dropped_cells, out.dropped_volume);
   if (tets.empty())
     throw Error("", "part '" + part + "'",
                 "the tetrahedral filling produced no element (the part is smaller than its sphere "

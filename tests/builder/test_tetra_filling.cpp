@@ -31,6 +31,40 @@ TEST(Quality, WorseShapesScoreHigherAndFlatIsInfinite) {
   EXPECT_TRUE(std::isinf(tetrahedron_quality(V(0, 0, 0), V(1, 0, 0), V(0, 1, 0), V(1, 1, 0), I)));
 }
 
+// Two cells sharing a face are one piece; a cell hanging on it by a vertex only (and one by an
+// edge only) is dropped with the vertices only it used, the rest renumbered in order; a second
+// piece of comparable volume, joined to nothing, is kept.
+TEST(HangingPieces, CellsJoinedByAVertexOrAnEdgeOnlyAreDropped) {
+  std::vector<V> points = {V(0, 0, 0), V(1, 0, 0), V(0, 1, 0), V(0, 0, 1), V(1, 1, 1)};
+  std::vector<std::array<Index, 4>> tets = {{0, 1, 2, 3}, {1, 2, 3, 4}};  // a face in common
+  // By vertex 4 only: a small flat cell (volume 1e-4 of the piece's).
+  points.insert(points.end(), {V(1.01, 1, 1), V(1, 1.01, 1), V(1.01, 1.01, 1.0006)});
+  tets.push_back({4, 5, 6, 7});
+  // By edge 0-1 only.
+  points.insert(points.end(), {V(0.5, -0.01, 0), V(0.5, -0.01, -0.01)});
+  tets.push_back({0, 1, 8, 9});
+  // A separate piece of half the first one's volume.
+  points.insert(points.end(), {V(5, 0, 0), V(6, 0, 0), V(5, 1, 0), V(5, 0, 1)});
+  tets.push_back({10, 11, 12, 13});
+  Index removed = 0;
+  double volume = 0;
+  detail::drop_hanging_pieces(points, tets, removed, volume);
+  EXPECT_EQ(removed, 2);
+  EXPECT_GT(volume, 0.0);
+  EXPECT_LT(volume, 1e-3);
+  ASSERT_EQ(tets.size(), 3u);
+  ASSERT_EQ(points.size(), 9u);  // 5 + 4: the hanging cells' own vertices are gone
+  EXPECT_EQ(tets[0], (std::array<Index, 4>{0, 1, 2, 3}));
+  EXPECT_EQ(tets[1], (std::array<Index, 4>{1, 2, 3, 4}));
+  EXPECT_EQ(tets[2], (std::array<Index, 4>{5, 6, 7, 8}));
+  EXPECT_TRUE(points[5].isApprox(V(5, 0, 0)));
+  // A filling that is one piece is left as it is.
+  const auto before = tets;
+  detail::drop_hanging_pieces(points, tets, removed, volume);
+  EXPECT_EQ(removed, 0);
+  EXPECT_EQ(tets, before);
+}
+
 // A tetrahedron that is regular after the metric's map is regular in the metric.
 TEST(Quality, RegularInTheMetricMeansQOne) {
   const auto metric = anisotropic_metric(V(0.002, 0.004, 0.008), Eigen::Matrix3d::Identity());

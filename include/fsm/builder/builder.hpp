@@ -50,7 +50,9 @@ struct FidelityReport {
   double feature_angle_deg{0};               ///< sharp-edge angle used (0: no protection)
   Index feature_edges{0};                    ///< sharp edges of the surface protected
   Index feature_corners{0};                  ///< filling vertices where protected edges end/meet
-  std::vector<RegionFidelity> regions;       ///< the part's fixed boxes and half-spaces
+  Index dropped_cells{0};               ///< cells of pieces hanging by a vertex or an edge, dropped
+  double dropped_volume{0};             ///< their volume (m^3)
+  std::vector<RegionFidelity> regions;  ///< the part's fixed boxes and half-spaces
 };
 
 /// @brief One part's line of the report (the paper's Table 1 and more).

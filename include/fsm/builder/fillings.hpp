@@ -8,6 +8,8 @@
 /// HybridTopologyBuilder calls these for every part of a scene; benchmarks, validation tools and
 /// tests call them to look at one filling alone.
 
+#include <Eigen/Core>
+#include <array>
 #include <cstdint>
 #include <string>
 #include <utility>
@@ -32,7 +34,28 @@ struct TetraFilling {
   double feature_angle_deg{0};   ///< an edge is sharp when its face normals differ by more
   Index feature_edges{0};        ///< sharp edges of the surface protected in the filling
   Index feature_corners{0};      ///< vertices of the filling where protected chains end or meet
+  /// Cells dropped because their piece hung on the rest by a vertex or an edge only and held less
+  /// than kMinComponentShare of the largest piece's volume, and their volume (m^3).
+  Index dropped_cells{0};
+  double dropped_volume{0};
 };
+
+/// A face-connected piece of a tetrahedral filling smaller than this share of the largest piece's
+/// volume is dropped (fill_tetrahedral).
+inline constexpr double kMinComponentShare = 0.01;
+
+namespace detail {
+/// @brief Drops the pieces of a filling that hang on the rest by a vertex or an edge only: the
+/// cells are grouped into components joined through shared faces, and a component with less than
+/// kMinComponentShare of the largest one's volume is removed with the vertices only it used (the
+/// others renumbered in their order). Mesh_3 leaves such pieces (often a single flat cell) where a
+/// surface pinches; a piece joined by a vertex swings freely about it, and one of a fraction of a
+/// cubic millimetre with nodes of tens of micrograms is what the continuum law's step could not
+/// follow on the Visible Human uterus (docs/builder.md).
+void drop_hanging_pieces(std::vector<Eigen::Vector3d>& points,
+                         std::vector<std::array<Index, 4>>& tets, Index& removed_cells,
+                         double& removed_volume);
+}  // namespace detail
 
 /// @brief Mesh_3 Delaunay refinement under `metric`: constant metrics exactly (map by M^1/2, fill
 /// with unit size, map back), varying metrics by their smallest size. Criteria in the unit space:

@@ -12,10 +12,14 @@
 // incompressible tissue does not lock), with Voigt viscosity on the strain rate: a viscous
 // pressure tau K dJ_a/dt and, for the deviatoric part, dashpots tau k_e along the element edges.
 //
-// The implicit solve's tangent is positive semi-definite by construction: springs k_e along the
-// current edges for the deviatoric part (k_e = (5/2) mu sum V_T / l_e^2, the network whose shear
-// modulus is mu) and the Gauss-Newton volumetric term sum_a (K / V_a) grad v_a grad v_a^T (the
-// indefinite term with U' d2v is left out). The forces are exact; only the tangent approximates.
+// The implicit solve's tangent is positive semi-definite by construction. Deviatoric part: springs
+// k_e along the current edges (k_e = (5/2) mu sum V_T / l_e^2, the network whose shear modulus is
+// mu), each element's share scaled by its state (stiffening()); an element too poorly shaped for
+// springs along its edges to stand for it (a sliver: its apex moves across its base, which no edge
+// resists) gets instead the exact-shape corotated element tangent c V |sym(Q^T dF)|^2 (Q the
+// rotation of F). Volumetric part: the Gauss-Newton term sum_a (K / V_a) grad v_a grad v_a^T; the
+// indefinite term with U' d2v (the pressure's geometric stiffness) is represented by its size
+// alone, in the element's deviatoric share. The forces are exact; only the tangent approximates.
 // Nothing here allocates after refresh(), and nothing throws in the per-step functions.
 
 #include <Eigen/Core>
@@ -60,6 +64,24 @@ inline Matrix3<Scalar> cofactor(const Matrix3<Scalar>& F) noexcept {
   return c;
 }
 
+/// The rotation of F for a tangent: two Newton steps of the polar decomposition
+/// (X <- (X + X^-T) / 2, X^-T = cof(X) / det X) from F. Each step keeps F's singular vectors and
+/// takes its singular values s to (s + 1/s) / 2, so after two they are within 3 % of 1 for s in
+/// [0.5, 2] (exact rotations are not needed by a tangent; a reflection for an inverted element is
+/// fine). The identity for a degenerate F.
+template <typename Scalar>
+inline Matrix3<Scalar> tangent_rotation(const Matrix3<Scalar>& F) noexcept {
+  Matrix3<Scalar> X = F;
+  for (int k = 0; k < 2; ++k) {
+    const Matrix3<Scalar> c = cofactor(X);
+    const Scalar det = X.col(0).dot(c.col(0));
+    if (!(std::abs(det) > std::numeric_limits<Scalar>::min()) || !std::isfinite(det))
+      return Matrix3<Scalar>::Identity();
+    X = Scalar(0.5) * (X + c / det);
+  }
+  return X.allFinite() ? X : Matrix3<Scalar>::Identity();
+}
+
 /// Deviatoric energy density and its first Piola-Kirchhoff stress for one element.
 /// c10: C10 (Pa); c10_large: C10 beyond the switch (0 = linear); q_switch: I1bar - 3 at the
 /// switch. The bilinear pair as the link law has it (force continuous, stiffness E then E_L):
@@ -70,13 +92,17 @@ inline Matrix3<Scalar> cofactor(const Matrix3<Scalar>& F) noexcept {
 /// beyond the switch, else 1), for the implicit tangent.
 template <typename Scalar>
 inline Scalar deviatoric(const Matrix3<Scalar>& F, Scalar c10, Scalar c10_large, Scalar q_switch,
-                         Scalar j_min, Matrix3<Scalar>* P, Scalar* stiffening = nullptr) noexcept {
+                         Scalar j_min, Matrix3<Scalar>* P, Scalar* stiffening = nullptr,
+                         Scalar* volume_factor_out = nullptr,
+                         Scalar* distortion_out = nullptr) noexcept {
   const Matrix3<Scalar> cof = cofactor(F);
   const Scalar J = F.col(0).dot(cof.col(0));
   const Scalar I1 = F.squaredNorm();
   Scalar g, dg;
   volume_factor(J, j_min, g, dg);
+  if (volume_factor_out) *volume_factor_out = g;
   const Scalar q = I1 * g - Scalar(3);
+  if (distortion_out) *distortion_out = q;
   Scalar W, slope;  // slope = dW/dq
   if (c10_large > Scalar(0) && q > q_switch) {
     const Scalar s = std::sqrt(q / Scalar(3)), ss = std::sqrt(q_switch / Scalar(3));
@@ -108,23 +134,72 @@ class ContinuumTerm {
   static constexpr Scalar tangent_margin = Scalar(2);
   /// Below this volume ratio an element's deviatoric energy uses the extension of J^{-2/3}.
   static constexpr double j_min = 0.2;
+  /// Default of element_tangent_quality(): elements of shape quality below this get the element
+  /// tangent (about 1 % of the elements Mesh_3 makes, docs/physics.md section 11).
+  static constexpr double default_element_tangent_quality = 0.3;
+  /// An element strained past this also gets the element tangent for the step: I1bar - 3 (0.23
+  /// in a 30 % uniaxial stretch) or |J - 1|. Springs along the edges of a strongly distorted
+  /// element miss most of its stiffness (measured: an ovary hanging by a ligament chain, stretched
+  /// 2-4.5 times next to the attachment, diverged with them and not with the element tangent).
+  static constexpr double element_tangent_strain = 0.2;
+
+  /// The shape quality of a tetrahedron: 6 sqrt(2) V / l_rms^3 (1 for a regular one, 0 for a
+  /// flat one; negative when inverted).
+  [[nodiscard]] static Scalar shape_quality(const Matrix3<Scalar>& Dm) noexcept {
+    const Scalar l2 =
+        (Dm.col(0).squaredNorm() + Dm.col(1).squaredNorm() + Dm.col(2).squaredNorm() +
+         (Dm.col(1) - Dm.col(0)).squaredNorm() + (Dm.col(2) - Dm.col(0)).squaredNorm() +
+         (Dm.col(2) - Dm.col(1)).squaredNorm()) /
+        Scalar(6);
+    const Scalar l3 = l2 * std::sqrt(l2);
+    return l3 > Scalar(0) ? Scalar(std::sqrt(2.0)) * Dm.determinant() / l3 : Scalar(0);
+  }
 
   /// The edge spring of the tangent (before tangent_margin): the network whose shear modulus is
-  /// mu, each element's share stiffened as its material is at the last add_forces() state.
+  /// mu, each element's share scaled by its state at the last add_forces() (stiffening()), and
+  /// without the elements that have the element tangent.
   [[nodiscard]] Scalar edge_stiffness(std::size_t e) const noexcept {
-    if (!m_any_bilinear) return m_edge_k[e];
     Scalar k(0);
-    for (Index s = m_edge_part_start[e]; s < m_edge_part_start[e + 1]; ++s)
-      k += m_stiffening[std::size_t(m_edge_part_element[std::size_t(s)])] *
-           m_edge_part_k[std::size_t(s)];
+    for (Index s = m_edge_part_start[e]; s < m_edge_part_start[e + 1]; ++s) {
+      const auto t = std::size_t(m_edge_part_element[std::size_t(s)]);
+      if (!m_element_tangent[t])
+        k += (m_state_factor[t] + m_pressure_share[t] * std::abs(m_pressure[t]) / m_c10[t]) *
+             m_edge_part_k[std::size_t(s)];
+    }
     return k;
   }
+
+  /// Elements whose shape quality (shape_quality()) is below `q` get the exact-shape element
+  /// tangent instead of edge springs: 0 = none, above 1 = all (each costs about five times its
+  /// edge springs per iteration). Allocates; not real-time.
+  void set_element_tangent_quality(Scalar q) {
+    m_element_tangent_quality = q;
+    const std::size_t nt = m_quality.size();
+    m_poor_shape.assign(nt, 0);
+    for (std::size_t t = 0; t < nt; ++t) m_poor_shape[t] = m_quality[t] < q ? 1 : 0;
+    // Which elements have it changes with the strain at every add_forces(): room for all.
+    m_element_tangent = m_poor_shape;
+    m_dense.clear();
+    m_dense.reserve(nt);
+    for (std::size_t t = 0; t < nt; ++t)
+      if (m_element_tangent[t]) m_dense.push_back(Index(t));
+    m_dense_rotation.assign(9 * nt, Scalar(0));
+    m_dense_coefficient.assign(nt, Scalar(0));
+  }
+  [[nodiscard]] Scalar element_tangent_quality() const noexcept {
+    return m_element_tangent_quality;
+  }
+  /// The elements that have the element tangent at the last add_forces(): those of poor shape
+  /// and those strained past element_tangent_strain.
+  [[nodiscard]] std::size_t num_element_tangents() const noexcept { return m_dense.size(); }
 
   /// Rebuilds everything from the model's continuum regions (allocates; not real-time).
   void refresh(const SphereModel<Scalar>& model) {
     m_tets.clear();
     m_dm_inv.clear();
     m_volume.clear();
+    m_quality.clear();
+    m_pressure_share.clear();
     m_c10.clear();
     m_c10_large.clear();
     m_q_switch.clear();
@@ -138,7 +213,6 @@ class ContinuumTerm {
     const auto region = model.node_regions();
     // (i, j, V / l^2, region, element)
     std::vector<std::tuple<Index, Index, Scalar, Index, Index>> edges;
-    m_any_bilinear = false;
     for (Index t = 0; t < model.num_tetrahedra(); ++t) {
       const Index r = region[tets(t, 0)];
       const Region<Scalar>& reg = model.region(r);
@@ -152,11 +226,21 @@ class ContinuumTerm {
       for (int k = 0; k < 4; ++k) m_tets.push_back(tets(t, k));
       for (int k = 0; k < 9; ++k) m_dm_inv.push_back(inv(k % 3, k / 3));  // column-major
       m_volume.push_back(V);
+      m_quality.push_back(shape_quality(Dm));
+      {
+        // The pressure's geometric stiffness p d2v_T against the element's edge springs: d2v_T has
+        // entries of about l / 6, a share (5/2) mu V / l^2 (stiffening(): p l^3 / (30 C10 V)).
+        const Scalar l2 =
+            (Dm.col(0).squaredNorm() + Dm.col(1).squaredNorm() + Dm.col(2).squaredNorm() +
+             (Dm.col(1) - Dm.col(0)).squaredNorm() + (Dm.col(2) - Dm.col(0)).squaredNorm() +
+             (Dm.col(2) - Dm.col(1)).squaredNorm()) /
+            Scalar(6);
+        m_pressure_share.push_back(l2 * std::sqrt(l2) / (Scalar(30) * V));
+      }
       const Scalar mu = mat.shear_modulus();
       m_c10.push_back(mu / Scalar(2));
       const Index element = Index(m_volume.size()) - 1;
       if (mat.is_bilinear()) {
-        m_any_bilinear = true;
         // The bilinear pair as a stiffening of the deviatoric energy (deviatoric()): E_L / E times
         // larger where I1bar - 3 passes its value in uniaxial stretch at the switch strain.
         const Scalar s = Scalar(1) + mat.switch_strain;
@@ -209,6 +293,9 @@ class ContinuumTerm {
     }
     const std::size_t nt = m_volume.size();
     m_stiffening.assign(nt, Scalar(1));
+    m_state_factor.assign(nt, Scalar(1));
+    m_pressure.assign(nt, Scalar(0));
+    set_element_tangent_quality(m_element_tangent_quality);
     m_grad.assign(12 * nt, Scalar(0));
     m_edge_block.assign(4 * num_edges(), Scalar(0));
     m_node_coefficient.assign(std::size_t(n), Scalar(0));
@@ -235,6 +322,7 @@ class ContinuumTerm {
     std::fill(volume_now, volume_now + m_num_nodes, Scalar(0));
     std::fill(rate, rate + m_num_nodes, Scalar(0));
     const std::size_t nt = m_volume.size();
+    m_dense.clear();
     // Pass 1: deviatoric forces; current volumes and their rates scattered to the nodes.
     for (std::size_t t = 0; t < nt; ++t) {
       const Index* id = &m_tets[4 * t];
@@ -246,7 +334,11 @@ class ContinuumTerm {
         for (int c = 0; c < 3; ++c) m_grad[12 * t + 3 * std::size_t(k) + std::size_t(c)] = g[k][c];
       const Matrix3<Scalar> F = Ds * dm_inv(t);
       Matrix3<Scalar> P;
-      deviatoric(F, m_c10[t], m_c10_large[t], m_q_switch[t], Scalar(j_min), &P, &m_stiffening[t]);
+      Scalar gj(1), distortion(0);
+      deviatoric(F, m_c10[t], m_c10_large[t], m_q_switch[t], Scalar(j_min), &P, &m_stiffening[t],
+                 &gj, &distortion);
+      // The I1 curvature of the energy is 2 C10 g(J): stiffer in compression.
+      m_state_factor[t] = m_stiffening[t] * std::max(Scalar(1), gj);
       const Matrix3<Scalar> H = -m_volume[t] * P * dm_inv(t).transpose();
       Vector3<Scalar> f0 = Vector3<Scalar>::Zero();
       for (int k = 0; k < 3; ++k) {
@@ -255,6 +347,10 @@ class ContinuumTerm {
       }
       add(f, id[0], f0);
       const Scalar vt = Ds.col(0).dot(Ds.col(1).cross(Ds.col(2))) / Scalar(6);
+      const bool strained = distortion > Scalar(element_tangent_strain) ||
+                            std::abs(vt / m_volume[t] - Scalar(1)) > Scalar(element_tangent_strain);
+      m_element_tangent[t] = std::uint8_t(m_poor_shape[t] || strained);
+      if (m_element_tangent[t]) m_dense.push_back(Index(t));  // within its capacity
       Scalar dvt(0);
       if (viscous)
         for (int k = 0; k < 4; ++k) dvt += g[k].dot(row(v, id[k]));
@@ -278,6 +374,7 @@ class ContinuumTerm {
       const Scalar p =
           (volume_now[id[0]] + volume_now[id[1]] + volume_now[id[2]] + volume_now[id[3]]) /
           Scalar(4);
+      m_pressure[t] = p;
       for (int k = 0; k < 4; ++k) {
         Scalar* q = f + 3 * std::ptrdiff_t(id[k]);
         q[0] -= p * g[3 * k];
@@ -364,6 +461,25 @@ class ContinuumTerm {
         diagonal[3 * std::ptrdiff_t(j) + c] += B[3] * n[c] * n[c];
       }
     }
+    // The element tangents: h^2 c V |sym(Q^T dF)|^2 at this x.
+    for (std::size_t k = 0; k < m_dense.size(); ++k) {
+      const auto t = std::size_t(m_dense[k]);
+      const Index* id = &m_tets[4 * t];
+      Matrix3<Scalar> Ds;
+      load_edges(x, id, Ds);
+      const Matrix3<Scalar> F = Ds * dm_inv(t);
+      Eigen::Map<Matrix3<Scalar>> rotation(&m_dense_rotation[9 * k]);
+      rotation = tangent_rotation(F);
+      m_dense_coefficient[k] = h2 * element_coefficient(t, F);
+      apply_element(k, v, rhs, -m_dense_coefficient[k]);
+      const Eigen::Map<const Matrix3<Scalar>> Q(&m_dense_rotation[9 * k]);
+      for (int a = 0; a < 4; ++a) {
+        const Vector3<Scalar> g = shape_gradient(t, a), qg = Q * g;
+        for (int c = 0; c < 3; ++c)
+          diagonal[3 * std::ptrdiff_t(id[a]) + c] +=
+              m_dense_coefficient[k] * (g.squaredNorm() + qg[c] * qg[c]);
+      }
+    }
     // The Gauss-Newton coefficients (h^2 + h tau) K / V_a.
     for (Index a = 0; a < m_num_nodes; ++a) {
       const Scalar V = m_node_volume[std::size_t(a)];
@@ -416,6 +532,23 @@ class ContinuumTerm {
       for (int a = 0; a < 4; ++a) c += m_node_coefficient[std::size_t(id[a])];
       for (int k = 0; k < 4; ++k) add(id[k], &m_grad[12 * t + 3 * std::size_t(k)], c / Scalar(16));
     }
+    // Element tangents: c V (|g_a|^2 I + (Q g_a)(Q g_a)^T) on node a.
+    for (std::size_t k = 0; k < m_dense.size(); ++k) {
+      const auto t = std::size_t(m_dense[k]);
+      const Eigen::Map<const Matrix3<Scalar>> Q(&m_dense_rotation[9 * k]);
+      const Scalar c = m_dense_coefficient[k];
+      for (int a = 0; a < 4; ++a) {
+        const Vector3<Scalar> g = shape_gradient(t, a), qg = Q * g;
+        Scalar* o = out + 6 * std::ptrdiff_t(m_tets[4 * t + std::size_t(a)]);
+        const Scalar d = c * g.squaredNorm();
+        o[0] += d + c * qg[0] * qg[0];
+        o[1] += d + c * qg[1] * qg[1];
+        o[2] += d + c * qg[2] * qg[2];
+        o[3] += c * qg[0] * qg[1];
+        o[4] += c * qg[0] * qg[2];
+        o[5] += c * qg[1] * qg[2];
+      }
+    }
   }
 
   /// y += A_continuum p for the tangent prepared by prepare_implicit().
@@ -433,6 +566,7 @@ class ContinuumTerm {
       }
     }
     apply_volumetric(p, y, [&](Index a) { return m_node_coefficient[std::size_t(a)]; });
+    for (std::size_t k = 0; k < m_dense.size(); ++k) apply_element(k, p, y, m_dense_coefficient[k]);
   }
 
   /// Conservative bound of the element term's stiffness per node (N/m): Gershgorin row sums of
@@ -461,6 +595,17 @@ class ContinuumTerm {
       Scalar s(0);
       for (int j = 0; j < 4; ++j) s += g[j].norm() / Scalar(4);
       for (int a = 0; a < 4; ++a) ring[std::size_t(m_tets[4 * t + std::size_t(a)])] += s;
+    }
+    // Element tangents at rest (F = I): row sums of 2 C10_max V (|g_a| |g_b| + |g_a . g_b|) <=
+    // 4 C10_max V |g_a| |g_b|, at the stiffer C10 of a bilinear material.
+    for (std::size_t t = 0; t < m_volume.size(); ++t) {
+      if (!m_poor_shape[t]) continue;
+      const Scalar c10 = std::max(m_c10[t], m_c10_large[t]);
+      Scalar sum(0);
+      for (int b = 0; b < 4; ++b) sum += shape_gradient(t, b).norm();
+      for (int a = 0; a < 4; ++a)
+        k[m_tets[4 * t + std::size_t(a)]] +=
+            tangent_margin * Scalar(4) * c10 * m_volume[t] * shape_gradient(t, a).norm() * sum;
     }
     for (std::size_t t = 0; t < m_volume.size(); ++t) {
       Matrix3<Scalar> Ds;
@@ -508,6 +653,27 @@ class ContinuumTerm {
       if (!(l > Scalar(0))) continue;
       const Matrix3<Scalar> K = tangent_margin * edge_stiffness(e) * (d / l) * (d / l).transpose();
       push_pair(trip, i, j, K);
+    }
+    // Element tangents: 2 c V G^T Q sym(Q^T G .), column by column.
+    for (const Index te : m_dense) {
+      const auto t = std::size_t(te);
+      const Index* id = &m_tets[4 * t];
+      Matrix3<Scalar> Ds;
+      load_edges(x, id, Ds);
+      const Matrix3<Scalar> F = Ds * dm_inv(t);
+      const Matrix3<Scalar> Q = tangent_rotation(F);
+      const Scalar c = element_coefficient(t, F);
+      for (int b = 0; b < 4; ++b)
+        for (int cb = 0; cb < 3; ++cb) {
+          Matrix3<Scalar> dF = Matrix3<Scalar>::Zero();
+          dF.row(cb) = shape_gradient(t, b).transpose();
+          const Matrix3<Scalar> A = Q.transpose() * dF;
+          const Matrix3<Scalar> B = Scalar(2) * c * Q * (Scalar(0.5) * (A + A.transpose()));
+          for (int a = 0; a < 4; ++a) {
+            const Vector3<Scalar> col = B * shape_gradient(t, a);
+            for (int r = 0; r < 3; ++r) trip.emplace_back(3 * id[a] + r, 3 * id[b] + cb, col[r]);
+          }
+        }
     }
     // sum_a (K / V_a) grad v_a grad v_a^T, grad v_a = sum_{T at a} grad v_T / 4.
     const auto grad = nodal_volume_gradients(x);
@@ -593,6 +759,35 @@ class ContinuumTerm {
     p[1] += v[1];
     p[2] += v[2];
   }
+  /// The rest shape gradient of node a (0-3) of element t: dF = sum_a x_a g_a^T.
+  [[nodiscard]] Vector3<Scalar> shape_gradient(std::size_t t, int a) const noexcept {
+    const auto D = dm_inv(t);
+    if (a > 0) return D.row(a - 1).transpose();
+    return -(D.row(0) + D.row(1) + D.row(2)).transpose();
+  }
+  /// c V of element t's tangent at F: tangent_margin times its I1 curvature 2 C10 (stiffened as in
+  /// add_forces()), plus the size of its pressure's geometric stiffness |p| |F| / sqrt(3).
+  [[nodiscard]] Scalar element_coefficient(std::size_t t, const Matrix3<Scalar>& F) const noexcept {
+    return m_volume[t] * (tangent_margin * Scalar(2) * m_c10[t] * m_state_factor[t] +
+                          std::abs(m_pressure[t]) * F.norm() / std::sqrt(Scalar(3)));
+  }
+  /// y += 2 coef G^T Q sym(Q^T G p) for the k-th element tangent (Q its stored rotation).
+  void apply_element(std::size_t k, const Scalar* p, Scalar* y, Scalar coef) const noexcept {
+    const auto t = std::size_t(m_dense[k]);
+    const Index* id = &m_tets[4 * t];
+    const Eigen::Map<const Matrix3<Scalar>> Q(&m_dense_rotation[9 * k]);
+    Matrix3<Scalar> Dp;
+    load_edges(p, id, Dp);
+    const Matrix3<Scalar> A = Q.transpose() * (Dp * dm_inv(t));
+    const Matrix3<Scalar> B = coef * Q * (A + A.transpose());  // 2 coef Q sym(A)
+    const Matrix3<Scalar> H = B * dm_inv(t).transpose();
+    Vector3<Scalar> f0 = Vector3<Scalar>::Zero();
+    for (int c = 0; c < 3; ++c) {
+      add(y, id[c + 1], H.col(c));
+      f0 -= H.col(c);
+    }
+    add(y, id[0], f0);
+  }
   static void load_edges(const Scalar* x, const Index* id, Matrix3<Scalar>& Ds) noexcept {
     const Vector3<Scalar> o = row(x, id[0]);
     for (int k = 0; k < 3; ++k) Ds.col(k) = row(x, id[k + 1]) - o;
@@ -663,7 +858,17 @@ class ContinuumTerm {
   std::vector<Index> m_edge_part_start, m_edge_part_element;
   std::vector<Scalar> m_edge_part_k;
   std::vector<Scalar> m_stiffening;  // per element: its current C10 over its small-strain C10
-  bool m_any_bilinear{false};
+  // Per element at the last add_forces(): stiffening times max(1, g(J)), and its mean pressure.
+  std::vector<Scalar> m_state_factor, m_pressure;
+  std::vector<Scalar> m_quality;         // per element: shape_quality() at rest
+  std::vector<Scalar> m_pressure_share;  // per element: l_rms^3 / (30 V)
+  // The element tangents (set_element_tangent_quality()): which elements, their rotations (9,
+  // column-major) and h^2 c V at the last prepare_implicit().
+  Scalar m_element_tangent_quality{Scalar(default_element_tangent_quality)};
+  std::vector<std::uint8_t> m_poor_shape;       // per element: quality below the threshold
+  std::vector<std::uint8_t> m_element_tangent;  // per element, at the last add_forces()
+  std::vector<Index> m_dense;
+  std::vector<Scalar> m_dense_rotation, m_dense_coefficient;
   // Per-step scratch (sized by refresh).
   std::vector<Scalar> m_grad;              // 12 per element: volume gradients at the step's x
   std::vector<Scalar> m_edge_block;        // 4 per edge: n and (h^2 + h tau) k

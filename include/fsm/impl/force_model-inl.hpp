@@ -427,7 +427,11 @@ void ForceModel<Scalar>::set_options(const Options& options) {
   if (!options.gravity.allFinite()) throw Error("", "gravity", "is not finite");
   if (!(std::isfinite(options.drag) && options.drag >= 0))
     throw Error("", "drag", "must be non-negative and finite (1/s)");
+  if (!(std::isfinite(options.element_tangent_quality) && options.element_tangent_quality >= 0))
+    throw Error("", "element_tangent_quality", "must be non-negative and finite");
   m_options = options;
+  if (m_continuum.element_tangent_quality() != options.element_tangent_quality)
+    m_continuum.set_element_tangent_quality(options.element_tangent_quality);
   resize_scratch();
 }
 
@@ -843,6 +847,11 @@ typename ForceModel<Scalar>::SparseMatrix ForceModel<Scalar>::stiffness_matrix(
   });
   if (!m_continuum.empty()) {
     detail::ContinuumTerm<Scalar> elements = m_continuum;  // its scratch is used
+    {
+      // The tangent's state (stiffening, pressures) at this x and v.
+      std::vector<Scalar> scratch(3 * std::size_t(n), Scalar(0));
+      elements.add_forces(x, model.velocities().data(), scratch.data());
+    }
     if (form == JacobianForm::exact) {
       elements.exact_stiffness_triplets(x, trip);
     } else {
