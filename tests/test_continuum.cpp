@@ -466,8 +466,8 @@ TEST(Continuum, LightNodeOnASliverStaysStable) {
   }
 }
 
-// An element strained past element_tangent_strain gets the element tangent for the step, and an
-// unstrained well-shaped one does not.
+// An element strained past element_tangent_strain (0.5) gets the element tangent for the step, and
+// a well-shaped one at rest or moderately strained does not.
 TEST(Continuum, StrainedElementsGetTheElementTangent) {
   SphereModel<double> m = continuum_block({2, 2, 2}, 0.005);
   ForceModel<double> f = no_gravity(m);
@@ -475,12 +475,18 @@ TEST(Continuum, StrainedElementsGetTheElementTangent) {
   const Positions<double> zero = Positions<double>::Zero(m.num_nodes(), 3);
   f.evaluate(m, m.positions(), zero, F);
   EXPECT_EQ(f.continuum_element_tangents(), 0);
-  M3 stretch = M3::Identity();
-  stretch(0, 0) = 1.5;
-  f.evaluate(m, affine(m, stretch), zero, F);
+  // An isochoric stretch of 2 (I1bar - 3 = 2): every element; of 1.3 (0.23): none; a volume
+  // change of 2.5 (|J - 1| = 1.5): every element.
+  auto isochoric = [](double l) {
+    M3 G = M3::Identity() / std::sqrt(l);
+    G(0, 0) = l;
+    return G;
+  };
+  f.evaluate(m, affine(m, isochoric(2.0)), zero, F);
   EXPECT_EQ(f.continuum_element_tangents(), m.num_tetrahedra());
-  stretch(0, 0) = 1.05;
-  f.evaluate(m, affine(m, stretch), zero, F);
+  f.evaluate(m, affine(m, M3(std::cbrt(2.5) * M3::Identity())), zero, F);
+  EXPECT_EQ(f.continuum_element_tangents(), m.num_tetrahedra());
+  f.evaluate(m, affine(m, isochoric(1.3)), zero, F);
   EXPECT_EQ(f.continuum_element_tangents(), 0);
 }
 

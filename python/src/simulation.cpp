@@ -62,15 +62,23 @@ void define_simulation(py::module_& m) {
   py::class_<Sim>(m, "Simulation", R"(A SphereModel stepped in time, with divergence detection.
 
 Simulation(model, integrator="implicit_euler", gravity=(0, 0, -9.81), damping="along_link",
-           threads=1, check_energy=True, energy_tolerance=1.0, max_substep_halvings=0)
+           threads=1, check_energy=True, energy_tolerance=1.0, max_substep_halvings=0,
+           drag=0.0, element_tangent_quality=0.3)
 
 The model is copied in; sim.model is the simulated one. integrator is a name from
-fsm.integrator_names() or an fsm.Integrator instance (copied). A diverging step is rolled back and
-reported, never left as NaN. Raises fsm.Error for a bad model or option.)")
+fsm.integrator_names() or an fsm.Integrator instance (copied). drag (1/s) is the surroundings'
+mass-proportional damping. element_tangent_quality: continuum elements of shape quality below it
+(6 sqrt(2) V / l_rms^3, 1 for a regular tetrahedron) get the exact-shape element tangent in the
+implicit solve (0 = none, above 1 = all; strongly strained elements get it whatever this is). A
+diverging step is rolled back and reported, never left as NaN. Raises fsm.Error for a bad model or
+option.)")
       .def(py::init([](const SphereModel<Scalar>& model, const py::object& integrator,
                        const Vector3<Scalar>& gravity, const std::string& damping, int threads,
-                       bool check_energy, Scalar energy_tolerance, int max_substep_halvings) {
+                       bool check_energy, Scalar energy_tolerance, int max_substep_halvings,
+                       Scalar drag, Scalar element_tangent_quality) {
              typename Sim::Options o;
+             o.forces.drag = drag;
+             o.forces.element_tangent_quality = element_tangent_quality;
              o.forces.gravity = gravity;
              o.forces.damping = to_damping(damping);
              o.forces.threads = threads;
@@ -82,7 +90,8 @@ reported, never left as NaN. Raises fsm.Error for a bad model or option.)")
            py::arg("model"), py::arg("integrator") = "implicit_euler",
            py::arg("gravity") = Vector3<Scalar>(0, 0, -9.81), py::arg("damping") = "along_link",
            py::arg("threads") = 1, py::arg("check_energy") = true,
-           py::arg("energy_tolerance") = 1.0, py::arg("max_substep_halvings") = 0)
+           py::arg("energy_tolerance") = 1.0, py::arg("max_substep_halvings") = 0,
+           py::arg("drag") = 0.0, py::arg("element_tangent_quality") = 0.3)
       .def("step", &Sim::step, py::arg("dt"), py::call_guard<py::gil_scoped_release>(),
            "Advances by dt seconds; returns a StepReport. Never raises.")
       .def(

@@ -131,3 +131,22 @@ def test_run_releases_the_gil(block):
     inside = [x for x in ticks if start + margin < x < end - margin]
     assert end - start > 0.05  # long enough for the thread to be scheduled many times
     assert len(inside) > 100
+
+
+def test_drag_and_element_tangent_quality_options(block):
+    """drag damps rigid motion; the element tangent choice changes the solve, not the physics."""
+    model = block
+    model.set_region_law(0, fsm.ForceLaw.continuum)
+    results = []
+    for quality in (0.0, 0.3, 2.0):
+        sim = fsm.Simulation(model, drag=5.0, element_tangent_quality=quality)
+        assert sim.run(100, 1e-3) == 100
+        results.append(sim.model.positions.copy())
+    # The same static sag whatever the tangent (the forces are exact), to the solver's tolerance.
+    assert np.allclose(results[0], results[2], atol=1e-6)
+    assert np.allclose(results[1], results[2], atol=1e-6)
+    for bad in (dict(drag=-1.0), dict(element_tangent_quality=-0.1),
+                dict(element_tangent_quality=float("nan"))):
+        with pytest.raises(fsm.Error):
+            fsm.Simulation(model, **bad)
+

@@ -137,11 +137,13 @@ class ContinuumTerm {
   /// Default of element_tangent_quality(): elements of shape quality below this get the element
   /// tangent (about 1 % of the elements Mesh_3 makes, docs/physics.md section 11).
   static constexpr double default_element_tangent_quality = 0.3;
-  /// An element strained past this also gets the element tangent for the step: I1bar - 3 (0.23
-  /// in a 30 % uniaxial stretch) or |J - 1|. Springs along the edges of a strongly distorted
-  /// element miss most of its stiffness (measured: an ovary hanging by a ligament chain, stretched
-  /// 2-4.5 times next to the attachment, diverged with them and not with the element tangent).
-  static constexpr double element_tangent_strain = 0.2;
+  /// An element strained past this also gets the element tangent for the step: I1bar - 3 (0.5 in
+  /// an isochoric stretch of 1.55 or a compression to 0.61) or |J - 1|. Springs along the edges of
+  /// a strongly distorted element miss much of its stiffness (an ovary hanging by a ligament chain
+  /// is stretched 2-4.5 times next to the attachment). A trade measured on 2026-11-25
+  /// (docs/physics.md section 11): at 0.2 the sagging VHF pelvis needs 22 solver iterations a step
+  /// (at 1.0: 38) but the validation's bonded compression twice as many as without it.
+  static constexpr double element_tangent_strain = 0.5;
 
   /// The shape quality of a tetrahedron: 6 sqrt(2) V / l_rms^3 (1 for a regular one, 0 for a
   /// flat one; negative when inverted).
