@@ -275,12 +275,12 @@ class ForceModel {
   /// Gershgorin row sum of the links' and elements' rest stiffness, `|V|` (for contact stiffness).
   [[nodiscard]] std::vector<Scalar> node_stiffness(const SphereModel<Scalar>& model) const;
 
-  /// @brief Continuum elements with \f$J \le 0\f$ (inverted) at x.
   /// @brief Continuum elements that had the element tangent at the last evaluation (poorly shaped
   /// or strongly strained ones, Options::element_tangent_quality).
   [[nodiscard]] Index continuum_element_tangents() const noexcept {
     return Index(m_continuum.num_element_tangents());
   }
+  /// @brief Continuum elements with \f$J \le 0\f$ (inverted) at x.
   [[nodiscard]] Index inverted_elements(const ConstPositionsRef& x) const noexcept {
     return m_continuum.inverted(x.data());
   }

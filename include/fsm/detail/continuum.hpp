@@ -14,13 +14,14 @@
 //
 // The implicit solve's tangent is positive semi-definite by construction. Deviatoric part: springs
 // k_e along the current edges (k_e = (5/2) mu sum V_T / l_e^2, the network whose shear modulus is
-// mu), each element's share scaled by its state (stiffening()); an element too poorly shaped for
-// springs along its edges to stand for it (a sliver: its apex moves across its base, which no edge
-// resists) gets instead the exact-shape corotated element tangent c V |sym(Q^T dF)|^2 (Q the
-// rotation of F). Volumetric part: the Gauss-Newton term sum_a (K / V_a) grad v_a grad v_a^T; the
-// indefinite term with U' d2v (the pressure's geometric stiffness) is represented by its size
-// alone, in the element's deviatoric share. The forces are exact; only the tangent approximates.
-// Nothing here allocates after refresh(), and nothing throws in the per-step functions.
+// mu), each element's share scaled by its state (bilinear stiffening, g(J), pressure); an element
+// too poorly shaped for springs along its edges to stand for it (a sliver: its apex moves across
+// its base, which no edge resists), or too strongly strained, gets instead the exact-shape
+// corotated element tangent c V |sym(Q^T dF)|^2 (Q the rotation of F). Volumetric part: the
+// Gauss-Newton term sum_a (K / V_a) grad v_a grad v_a^T; the indefinite term with U' d2v (the
+// pressure's geometric stiffness) is represented by its size alone, in the element's deviatoric
+// share. The forces are exact; only the tangent approximates. Nothing here allocates after
+// refresh(), and nothing throws in the per-step functions.
 
 #include <Eigen/Core>
 #include <Eigen/LU>
@@ -145,21 +146,25 @@ class ContinuumTerm {
   /// (at 1.0: 38) but the validation's bonded compression twice as many as without it.
   static constexpr double element_tangent_strain = 0.5;
 
-  /// The shape quality of a tetrahedron: 6 sqrt(2) V / l_rms^3 (1 for a regular one, 0 for a
-  /// flat one; negative when inverted).
-  [[nodiscard]] static Scalar shape_quality(const Matrix3<Scalar>& Dm) noexcept {
+  /// The cube of a tetrahedron's root-mean-square edge length, from its edge matrix.
+  [[nodiscard]] static Scalar rms_edge_cubed(const Matrix3<Scalar>& Dm) noexcept {
     const Scalar l2 =
         (Dm.col(0).squaredNorm() + Dm.col(1).squaredNorm() + Dm.col(2).squaredNorm() +
          (Dm.col(1) - Dm.col(0)).squaredNorm() + (Dm.col(2) - Dm.col(0)).squaredNorm() +
          (Dm.col(2) - Dm.col(1)).squaredNorm()) /
         Scalar(6);
-    const Scalar l3 = l2 * std::sqrt(l2);
+    return l2 * std::sqrt(l2);
+  }
+  /// The shape quality of a tetrahedron: 6 sqrt(2) V / l_rms^3 (1 for a regular one, 0 for a
+  /// flat one; negative when inverted).
+  [[nodiscard]] static Scalar shape_quality(const Matrix3<Scalar>& Dm) noexcept {
+    const Scalar l3 = rms_edge_cubed(Dm);
     return l3 > Scalar(0) ? Scalar(std::sqrt(2.0)) * Dm.determinant() / l3 : Scalar(0);
   }
 
   /// The edge spring of the tangent (before tangent_margin): the network whose shear modulus is
-  /// mu, each element's share scaled by its state at the last add_forces() (stiffening()), and
-  /// without the elements that have the element tangent.
+  /// mu, each element's share scaled by its state at the last add_forces() (m_state_factor and
+  /// its pressure), and without the elements that have the element tangent.
   [[nodiscard]] Scalar edge_stiffness(std::size_t e) const noexcept {
     Scalar k(0);
     for (Index s = m_edge_part_start[e]; s < m_edge_part_start[e + 1]; ++s) {
@@ -179,12 +184,10 @@ class ContinuumTerm {
     const std::size_t nt = m_quality.size();
     m_poor_shape.assign(nt, 0);
     for (std::size_t t = 0; t < nt; ++t) m_poor_shape[t] = m_quality[t] < q ? 1 : 0;
-    // Which elements have it changes with the strain at every add_forces(): room for all.
+    // Which elements have it is decided at every add_forces() (poor shape or strain): room for all.
     m_element_tangent = m_poor_shape;
     m_dense.clear();
     m_dense.reserve(nt);
-    for (std::size_t t = 0; t < nt; ++t)
-      if (m_element_tangent[t]) m_dense.push_back(Index(t));
     m_dense_rotation.assign(9 * nt, Scalar(0));
     m_dense_coefficient.assign(nt, Scalar(0));
   }
@@ -229,16 +232,9 @@ class ContinuumTerm {
       for (int k = 0; k < 9; ++k) m_dm_inv.push_back(inv(k % 3, k / 3));  // column-major
       m_volume.push_back(V);
       m_quality.push_back(shape_quality(Dm));
-      {
-        // The pressure's geometric stiffness p d2v_T against the element's edge springs: d2v_T has
-        // entries of about l / 6, a share (5/2) mu V / l^2 (stiffening(): p l^3 / (30 C10 V)).
-        const Scalar l2 =
-            (Dm.col(0).squaredNorm() + Dm.col(1).squaredNorm() + Dm.col(2).squaredNorm() +
-             (Dm.col(1) - Dm.col(0)).squaredNorm() + (Dm.col(2) - Dm.col(0)).squaredNorm() +
-             (Dm.col(2) - Dm.col(1)).squaredNorm()) /
-            Scalar(6);
-        m_pressure_share.push_back(l2 * std::sqrt(l2) / (Scalar(30) * V));
-      }
+      // The pressure's geometric stiffness p d2v_T against the element's edge springs: d2v_T has
+      // entries of about l / 6, a share (5/2) mu V / l^2 (edge_stiffness(): p l^3 / (30 C10 V)).
+      m_pressure_share.push_back(rms_edge_cubed(Dm) / (Scalar(30) * V));
       const Scalar mu = mat.shear_modulus();
       m_c10.push_back(mu / Scalar(2));
       const Index element = Index(m_volume.size()) - 1;
@@ -294,7 +290,6 @@ class ContinuumTerm {
       m_edge_tau.push_back(mat.retardation_time());
     }
     const std::size_t nt = m_volume.size();
-    m_stiffening.assign(nt, Scalar(1));
     m_state_factor.assign(nt, Scalar(1));
     m_pressure.assign(nt, Scalar(0));
     set_element_tangent_quality(m_element_tangent_quality);
@@ -336,11 +331,11 @@ class ContinuumTerm {
         for (int c = 0; c < 3; ++c) m_grad[12 * t + 3 * std::size_t(k) + std::size_t(c)] = g[k][c];
       const Matrix3<Scalar> F = Ds * dm_inv(t);
       Matrix3<Scalar> P;
-      Scalar gj(1), distortion(0);
-      deviatoric(F, m_c10[t], m_c10_large[t], m_q_switch[t], Scalar(j_min), &P, &m_stiffening[t],
-                 &gj, &distortion);
+      Scalar stiffening(1), gj(1), distortion(0);
+      deviatoric(F, m_c10[t], m_c10_large[t], m_q_switch[t], Scalar(j_min), &P, &stiffening, &gj,
+                 &distortion);
       // The I1 curvature of the energy is 2 C10 g(J): stiffer in compression.
-      m_state_factor[t] = m_stiffening[t] * std::max(Scalar(1), gj);
+      m_state_factor[t] = stiffening * std::max(Scalar(1), gj);
       const Matrix3<Scalar> H = -m_volume[t] * P * dm_inv(t).transpose();
       Vector3<Scalar> f0 = Vector3<Scalar>::Zero();
       for (int k = 0; k < 3; ++k) {
@@ -352,7 +347,12 @@ class ContinuumTerm {
       const bool strained = distortion > Scalar(element_tangent_strain) ||
                             std::abs(vt / m_volume[t] - Scalar(1)) > Scalar(element_tangent_strain);
       m_element_tangent[t] = std::uint8_t(m_poor_shape[t] || strained);
-      if (m_element_tangent[t]) m_dense.push_back(Index(t));  // within its capacity
+      if (m_element_tangent[t]) {
+        // Its F, for prepare_implicit() to turn into its rotation (the slot holds that after).
+        Eigen::Map<Matrix3<Scalar>> slot(&m_dense_rotation[9 * m_dense.size()]);
+        slot = F;
+        m_dense.push_back(Index(t));  // within its capacity
+      }
       Scalar dvt(0);
       if (viscous)
         for (int k = 0; k < 4; ++k) dvt += g[k].dot(row(v, id[k]));
@@ -463,23 +463,17 @@ class ContinuumTerm {
         diagonal[3 * std::ptrdiff_t(j) + c] += B[3] * n[c] * n[c];
       }
     }
-    // The element tangents: h^2 c V |sym(Q^T dF)|^2 at this x.
+    // The element tangents: h^2 c V |sym(Q^T dF)|^2 at this x (add_forces() left F in the slot).
     for (std::size_t k = 0; k < m_dense.size(); ++k) {
       const auto t = std::size_t(m_dense[k]);
-      const Index* id = &m_tets[4 * t];
-      Matrix3<Scalar> Ds;
-      load_edges(x, id, Ds);
-      const Matrix3<Scalar> F = Ds * dm_inv(t);
-      Eigen::Map<Matrix3<Scalar>> rotation(&m_dense_rotation[9 * k]);
-      rotation = tangent_rotation(F);
+      Eigen::Map<Matrix3<Scalar>> slot(&m_dense_rotation[9 * k]);
+      const Matrix3<Scalar> F = slot;
+      slot = tangent_rotation(F);
       m_dense_coefficient[k] = h2 * element_coefficient(t, F);
       apply_element(k, v, rhs, -m_dense_coefficient[k]);
-      const Eigen::Map<const Matrix3<Scalar>> Q(&m_dense_rotation[9 * k]);
       for (int a = 0; a < 4; ++a) {
-        const Vector3<Scalar> g = shape_gradient(t, a), qg = Q * g;
-        for (int c = 0; c < 3; ++c)
-          diagonal[3 * std::ptrdiff_t(id[a]) + c] +=
-              m_dense_coefficient[k] * (g.squaredNorm() + qg[c] * qg[c]);
+        const Matrix3<Scalar> B = element_block(k, a);
+        for (int c = 0; c < 3; ++c) diagonal[3 * std::ptrdiff_t(m_tets[4 * t + a]) + c] += B(c, c);
       }
     }
     // The Gauss-Newton coefficients (h^2 + h tau) K / V_a.
@@ -534,21 +528,18 @@ class ContinuumTerm {
       for (int a = 0; a < 4; ++a) c += m_node_coefficient[std::size_t(id[a])];
       for (int k = 0; k < 4; ++k) add(id[k], &m_grad[12 * t + 3 * std::size_t(k)], c / Scalar(16));
     }
-    // Element tangents: c V (|g_a|^2 I + (Q g_a)(Q g_a)^T) on node a.
+    // Element tangents.
     for (std::size_t k = 0; k < m_dense.size(); ++k) {
       const auto t = std::size_t(m_dense[k]);
-      const Eigen::Map<const Matrix3<Scalar>> Q(&m_dense_rotation[9 * k]);
-      const Scalar c = m_dense_coefficient[k];
       for (int a = 0; a < 4; ++a) {
-        const Vector3<Scalar> g = shape_gradient(t, a), qg = Q * g;
+        const Matrix3<Scalar> B = element_block(k, a);
         Scalar* o = out + 6 * std::ptrdiff_t(m_tets[4 * t + std::size_t(a)]);
-        const Scalar d = c * g.squaredNorm();
-        o[0] += d + c * qg[0] * qg[0];
-        o[1] += d + c * qg[1] * qg[1];
-        o[2] += d + c * qg[2] * qg[2];
-        o[3] += c * qg[0] * qg[1];
-        o[4] += c * qg[0] * qg[2];
-        o[5] += c * qg[1] * qg[2];
+        o[0] += B(0, 0);
+        o[1] += B(1, 1);
+        o[2] += B(2, 2);
+        o[3] += B(0, 1);
+        o[4] += B(0, 2);
+        o[5] += B(1, 2);
       }
     }
   }
@@ -773,6 +764,14 @@ class ContinuumTerm {
     return m_volume[t] * (tangent_margin * Scalar(2) * m_c10[t] * m_state_factor[t] +
                           std::abs(m_pressure[t]) * F.norm() / std::sqrt(Scalar(3)));
   }
+  /// The k-th element tangent's diagonal block on its node a, as prepared:
+  /// h^2 c V (|g_a|^2 I + (Q g_a)(Q g_a)^T).
+  [[nodiscard]] Matrix3<Scalar> element_block(std::size_t k, int a) const noexcept {
+    const Eigen::Map<const Matrix3<Scalar>> Q(&m_dense_rotation[9 * k]);
+    const Vector3<Scalar> g = shape_gradient(std::size_t(m_dense[k]), a), qg = Q * g;
+    return m_dense_coefficient[k] *
+           (g.squaredNorm() * Matrix3<Scalar>::Identity() + qg * qg.transpose());
+  }
   /// y += 2 coef G^T Q sym(Q^T G p) for the k-th element tangent (Q its stored rotation).
   void apply_element(std::size_t k, const Scalar* p, Scalar* y, Scalar coef) const noexcept {
     const auto t = std::size_t(m_dense[k]);
@@ -854,18 +853,19 @@ class ContinuumTerm {
   std::vector<Scalar> m_node_volume, m_node_bulk, m_node_tau;  // per node
   std::vector<Index> m_edges;                                  // 2 per edge
   std::vector<Scalar> m_edge_k, m_edge_tau;                    // per edge (N/m, s)
-  // Each edge's spring as the sum of its elements' shares (CSR), so that an element past a
-  // bilinear material's switch stiffens the tangent of its edges (m_stiffening, set by
-  // add_forces()): a tangent far softer than the forces would make the step unstable.
+  // Each edge's spring as the sum of its elements' shares (CSR), so that an element's state
+  // (m_state_factor and its pressure, set by add_forces()) stiffens the tangent of its edges: a
+  // tangent far softer than the forces would make the step unstable.
   std::vector<Index> m_edge_part_start, m_edge_part_element;
   std::vector<Scalar> m_edge_part_k;
-  std::vector<Scalar> m_stiffening;  // per element: its current C10 over its small-strain C10
-  // Per element at the last add_forces(): stiffening times max(1, g(J)), and its mean pressure.
+  // Per element at the last add_forces(): its current C10 over its small-strain C10 (bilinear
+  // stiffening) times max(1, g(J)), and its mean nodal pressure.
   std::vector<Scalar> m_state_factor, m_pressure;
   std::vector<Scalar> m_quality;         // per element: shape_quality() at rest
   std::vector<Scalar> m_pressure_share;  // per element: l_rms^3 / (30 V)
-  // The element tangents (set_element_tangent_quality()): which elements, their rotations (9,
-  // column-major) and h^2 c V at the last prepare_implicit().
+  // The element tangents (set_element_tangent_quality(), add_forces()): which elements, their F
+  // from add_forces() turned into their rotations by prepare_implicit() (9, column-major), and
+  // h^2 c V at the last prepare_implicit().
   Scalar m_element_tangent_quality{Scalar(default_element_tangent_quality)};
   std::vector<std::uint8_t> m_poor_shape;       // per element: quality below the threshold
   std::vector<std::uint8_t> m_element_tangent;  // per element, at the last add_forces()
