@@ -115,6 +115,39 @@ TYPED_TEST(NoAllocation, DivergenceAndSubSteppingAllocateNothing) {
   EXPECT_GT(diverged, 0);  // the path under test really ran
 }
 
+// Cutting between steps and tearing inside them (both laws): no allocation either.
+TYPED_TEST(NoAllocation, CutAndTearAllocateNothing) {
+  using S = TypeParam;
+  for (const ForceLaw law : {ForceLaw::links, ForceLaw::continuum}) {
+    SphereModel<S> model = jittered_block<S>();
+    Material<S> m = model.region(0).material;
+    m.tear_strain = S(0.15);
+    model.set_region_material(0, m);
+    model.set_region_law(0, law);
+    Simulation<S> sim(model);
+    (void)sim.step(S(1e-3));
+    Index cut = 0, torn = 0;
+    g_allocations = 0;
+    g_counting = true;
+    for (int s = 0; s < 40; ++s) {
+      Blade<S> blade;  // a blade sweeping down through the block, a little further each step
+      const S x = S(0.004) + S(0.0003) * S(s);
+      blade.start_a = Vector3<S>(x, S(-0.001), S(0.021));
+      blade.start_b = Vector3<S>(x, S(0.021), S(0.021));
+      blade.end_a = Vector3<S>(x + S(0.0003), S(-0.001), S(0.004));
+      blade.end_b = Vector3<S>(x + S(0.0003), S(0.021), S(0.004));
+      cut += sim.cut(blade).links_cut;
+      for (Index i = 75; i < sim.model().num_nodes(); ++i)  // pull the top: it tears
+        sim.external_forces()(i, 2) = S(0.02);
+      torn += sim.step(S(1e-3)).torn.links_torn;
+    }
+    g_counting = false;
+    EXPECT_EQ(g_allocations.load(), 0) << to_string(law);
+    EXPECT_GT(cut, 0) << to_string(law);
+    EXPECT_GT(torn, 0) << to_string(law);
+  }
+}
+
 // Skinning runs every render frame: it must not allocate either (both binding kinds).
 TEST(NoAllocation, SkinEvaluation) {
   Skin<double> skin;

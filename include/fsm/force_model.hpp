@@ -119,6 +119,10 @@ class ForceModel {
   /// @brief Re-reads sizes, masses and fixed flags from the model (call after changing them).
   /// Keeps the external forces when the node count is unchanged, else clears them.
   void refresh(const SphereModel<Scalar>& model);
+  /// @brief Re-reads which links and tetrahedra are intact (SphereModel::link_intact(),
+  /// tetrahedron_intact()) after a cut or a tear. Real-time: no allocation (the capacity is
+  /// reserved by refresh()); does nothing if the model changed size since refresh().
+  void update_topology(const SphereModel<Scalar>& model) noexcept;
 
   [[nodiscard]] const Options& options() const noexcept { return m_options; }
   /// @brief Changes the options (thread buffers are resized here, not in the step); fsm::Error

@@ -7,6 +7,7 @@
 #include "fsm/collision/shapes.hpp"
 #include "fsm/collision/triangle_bvh.hpp"
 #include "fsm/error.hpp"
+#include "fsm/cutting.hpp"
 #include "fsm/force_model.hpp"
 #include "fsm/haptics/haptic_device.hpp"
 #include "fsm/haptics/scripted_device.hpp"

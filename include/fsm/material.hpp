@@ -33,6 +33,10 @@ struct Material {
   Scalar switch_strain{0};
   /// \f$\nu\f$, in (-1, 0.5): Poisson's ratio of the continuum law (soft tissue: 0.45-0.49).
   Scalar poisson_ratio{Scalar(0.45)};
+  /// Strain \f$(l - l_0)/l_0\f$ past which the tissue tears (docs/physics.md section 12): a link
+  /// stretched past it breaks, and in a continuum region so do the tetrahedra that share it.
+  /// > 0; infinity (the default) = it never tears.
+  Scalar tear_strain{std::numeric_limits<Scalar>::infinity()};
 
   /// @brief True when the material has a modulus switch.
   [[nodiscard]] bool is_bilinear() const noexcept { return large_strain_modulus > Scalar(0); }
@@ -65,6 +69,8 @@ struct Material {
       bad("switch_strain", switch_strain, "must be positive for a bilinear material");
     if (!(poisson_ratio > Scalar(-1) && poisson_ratio < Scalar(0.5)))
       bad("poisson_ratio", poisson_ratio, "must be in (-1, 0.5)");
+    if (!(tear_strain > Scalar(0)))  // NaN fails too; infinity = never tears
+      bad("tear_strain", tear_strain, "must be positive (infinity = never tears)");
   }
 };
 

@@ -7,6 +7,7 @@
 #include <string>
 #include <string_view>
 
+#include "fsm/cutting.hpp"
 #include "fsm/force_model.hpp"
 #include "fsm/integrator.hpp"
 #include "fsm/sphere_model.hpp"
@@ -45,6 +46,9 @@ struct StepReport {
   /// Penalty contacts softened to the explicit step's limit (ForceModel::limit_contact_stiffness;
   /// always 0 with implicit Euler).
   Index softened_contacts{0};
+  /// Links and tetrahedra the step tore (Material::tear_strain); Simulation::topology() lists
+  /// them.
+  TopologyChange torn{};
   /// @brief True if the model advanced by dt.
   [[nodiscard]] bool advanced() const noexcept {
     return status == StepStatus::ok || status == StepStatus::recovered;
@@ -159,6 +163,18 @@ class Simulation {
   /// velocities. Not real-time safe.
   void refresh();
 
+  /// @name Cutting and tearing (docs/physics.md section 12)
+  /// @{
+  /// @brief Cuts the links and tetrahedra the blade swept through at the current positions
+  /// (between steps; the servo loop calls it before the step it belongs to). No allocation, never
+  /// throws: an invalid blade (Blade::validate()) is reported as `rejected` and changes nothing.
+  /// The energy reference restarts (a cut releases the energy its links held).
+  TopologyChange cut(const Blade<Scalar>& blade) noexcept;
+  /// @brief The cutting and tearing state: tear strains per link (writable; then
+  /// topology().refresh_tearing()), the links and tetrahedra of the last cut or tear.
+  [[nodiscard]] TopologyEditor<Scalar>& topology() noexcept { return m_topology; }
+  [[nodiscard]] const TopologyEditor<Scalar>& topology() const noexcept { return m_topology; }
+  /// @}
   /// @brief Changes the sleep policy (turning it off wakes every region).
   void set_sleep_policy(const SleepPolicy<Scalar>& policy);
   /// @brief True while region r sleeps.
@@ -192,12 +208,14 @@ class Simulation {
   void update_load() noexcept;
   void sleep_regions(Scalar dt) noexcept;
   void set_region_asleep(Index region, bool asleep) noexcept;
+  void apply_topology_change(TopologyChange& change) noexcept;
 
   SphereModel<Scalar> m_model;
   Options m_options;
   ForceModel<Scalar> m_forces;
   std::unique_ptr<Integrator<Scalar>> m_integrator;
   SpectralBound<Scalar> m_bound;
+  TopologyEditor<Scalar> m_topology;
   std::vector<Index> m_fixed_nodes;
   Index m_num_links{0};
   // Sleeping: nodes per region (CSR), nodes of other regions linked to each region (CSR).

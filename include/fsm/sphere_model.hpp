@@ -153,6 +153,11 @@ class SphereModel {
   }
   ScalarMap switch_strain() noexcept { return {m_switch_strain.data(), num_links()}; }
   ConstScalarMap switch_strain() const noexcept { return {m_switch_strain.data(), num_links()}; }
+  /// 1 for a link that holds, 0 for one a cut or a tear has broken (docs/physics.md section 12).
+  /// A broken link carries no force and is kept (indices stay valid); after editing this in place
+  /// call Simulation::refresh() or ForceModel::update_topology().
+  FlagMap link_intact() noexcept { return {m_link_intact.data(), num_links()}; }
+  ConstFlagMap link_intact() const noexcept { return {m_link_intact.data(), num_links()}; }
   /// @}
 
   /// @name Tetrahedra (|T| x 4 node indices)
@@ -162,6 +167,17 @@ class SphereModel {
   ConstTetrahedronMap tetrahedra() const noexcept {
     return {m_tetrahedron.data(), num_tetrahedra(), 4};
   }
+  /// 1 for a tetrahedron that holds, 0 for one a cut or a tear has removed (it carries no force;
+  /// its nodes keep their mass).
+  FlagMap tetrahedron_intact() noexcept { return {m_tetrahedron_intact.data(), num_tetrahedra()}; }
+  ConstFlagMap tetrahedron_intact() const noexcept {
+    return {m_tetrahedron_intact.data(), num_tetrahedra()};
+  }
+  /// @brief Links and tetrahedra broken so far (cut or torn).
+  [[nodiscard]] Index num_broken_links() const noexcept;
+  [[nodiscard]] Index num_removed_tetrahedra() const noexcept;
+  /// @brief Makes every link and tetrahedron whole again (refresh the simulation after).
+  void restore_topology() noexcept;
   /// @brief True if any region uses the continuum law.
   [[nodiscard]] bool has_continuum() const noexcept;
   /// @}
@@ -214,6 +230,7 @@ class SphereModel {
   std::vector<Index> m_link;  // 2 per link
   std::vector<Scalar> m_rest_length, m_stiffness, m_damping, m_large_stiffness, m_switch_strain;
   std::vector<Index> m_tetrahedron;  // 4 per tetrahedron
+  std::vector<std::uint8_t> m_link_intact, m_tetrahedron_intact;
 };
 
 extern template class SphereModel<float>;

@@ -169,7 +169,7 @@ class ContinuumTerm {
     Scalar k(0);
     for (Index s = m_edge_part_start[e]; s < m_edge_part_start[e + 1]; ++s) {
       const auto t = std::size_t(m_edge_part_element[std::size_t(s)]);
-      if (!m_element_tangent[t])
+      if (!m_element_tangent[t] && !m_removed[t])
         k += (m_state_factor[t] + m_pressure_share[t] * std::abs(m_pressure[t]) / m_c10[t]) *
              m_edge_part_k[std::size_t(s)];
     }
@@ -208,6 +208,7 @@ class ContinuumTerm {
     m_c10.clear();
     m_c10_large.clear();
     m_q_switch.clear();
+    m_element_tet.clear();
     const Index n = model.num_nodes();
     m_num_nodes = n;
     m_node_volume.assign(std::size_t(n), Scalar(0));
@@ -229,6 +230,7 @@ class ContinuumTerm {
       const Scalar V = Dm.determinant() / Scalar(6);
       const Matrix3<Scalar> inv = Dm.inverse();
       for (int k = 0; k < 4; ++k) m_tets.push_back(tets(t, k));
+      m_element_tet.push_back(t);
       for (int k = 0; k < 9; ++k) m_dm_inv.push_back(inv(k % 3, k / 3));  // column-major
       m_volume.push_back(V);
       m_quality.push_back(shape_quality(Dm));
@@ -290,6 +292,8 @@ class ContinuumTerm {
       m_edge_tau.push_back(mat.retardation_time());
     }
     const std::size_t nt = m_volume.size();
+    m_edge_k_whole = m_edge_k;
+    m_removed.assign(nt, 0);
     m_state_factor.assign(nt, Scalar(1));
     m_pressure.assign(nt, Scalar(0));
     set_element_tangent_quality(m_element_tangent_quality);
@@ -298,13 +302,49 @@ class ContinuumTerm {
     m_node_coefficient.assign(std::size_t(n), Scalar(0));
     m_node_scratch.assign(std::size_t(n), Scalar(0));
     m_energy_scratch.assign(std::size_t(n), Scalar(0));  // energy() reuses it without growing
+    m_node_volume_whole = m_node_volume;
+    apply_topology(model.tetrahedron_intact().data());
   }
+
+  /// Takes the model's removed tetrahedra out (`intact`: per model tetrahedron, 0 = removed): a
+  /// removed element carries no force, its volume leaves its nodes' volumes and its share leaves
+  /// its edges' springs and dashpots. No allocation (real-time: a cut or a tear calls it).
+  /// Returns how many elements are removed.
+  std::size_t apply_topology(const std::uint8_t* intact) noexcept {
+    const std::size_t nt = m_volume.size();
+    std::size_t removed = 0;
+    for (std::size_t t = 0; t < nt; ++t) {
+      m_removed[t] = intact[m_element_tet[t]] ? 0 : 1;
+      removed += m_removed[t];
+    }
+    if (removed == 0) {
+      std::copy(m_node_volume_whole.begin(), m_node_volume_whole.end(), m_node_volume.begin());
+      std::copy(m_edge_k_whole.begin(), m_edge_k_whole.end(), m_edge_k.begin());
+      return 0;
+    }
+    std::fill(m_node_volume.begin(), m_node_volume.end(), Scalar(0));
+    for (std::size_t t = 0; t < nt; ++t) {
+      if (m_removed[t]) continue;
+      for (std::size_t k = 0; k < 4; ++k)
+        m_node_volume[std::size_t(m_tets[4 * t + k])] += m_volume[t] / Scalar(4);
+    }
+    for (std::size_t e = 0; e < num_edges(); ++e) {
+      Scalar k(0);
+      for (Index p = m_edge_part_start[e]; p < m_edge_part_start[e + 1]; ++p)
+        if (!m_removed[std::size_t(m_edge_part_element[std::size_t(p)])])
+          k += m_edge_part_k[std::size_t(p)];
+      m_edge_k[e] = k;
+    }
+    return removed;
+  }
+
 
   [[nodiscard]] bool empty() const noexcept { return m_volume.empty(); }
   /// sum over elements of 6 C10 V (about E V, J): the energy scale of a unit strain.
   [[nodiscard]] Scalar energy_scale() const noexcept {
     Scalar s(0);
-    for (std::size_t t = 0; t < m_volume.size(); ++t) s += Scalar(6) * m_c10[t] * m_volume[t];
+    for (std::size_t t = 0; t < m_volume.size(); ++t)
+      if (!m_removed[t]) s += Scalar(6) * m_c10[t] * m_volume[t];
     return s;
   }
   [[nodiscard]] Index num_elements() const noexcept { return Index(m_volume.size()); }
@@ -322,6 +362,12 @@ class ContinuumTerm {
     m_dense.clear();
     // Pass 1: deviatoric forces; current volumes and their rates scattered to the nodes.
     for (std::size_t t = 0; t < nt; ++t) {
+      if (m_removed[t]) {  // zero gradients: the later passes add nothing for it
+        std::fill_n(&m_grad[12 * t], 12, Scalar(0));
+        m_element_tangent[t] = 0;
+        m_state_factor[t] = Scalar(1);
+        continue;
+      }
       const Index* id = &m_tets[4 * t];
       Matrix3<Scalar> Ds;
       Vector3<Scalar> g[4];
@@ -374,8 +420,10 @@ class ContinuumTerm {
       const Index* id = &m_tets[4 * t];
       const Scalar* g = &m_grad[12 * t];
       const Scalar p =
-          (volume_now[id[0]] + volume_now[id[1]] + volume_now[id[2]] + volume_now[id[3]]) /
-          Scalar(4);
+          m_removed[t] ? Scalar(0)
+                       : (volume_now[id[0]] + volume_now[id[1]] + volume_now[id[2]] +
+                          volume_now[id[3]]) /
+                             Scalar(4);
       m_pressure[t] = p;
       for (int k = 0; k < 4; ++k) {
         Scalar* q = f + 3 * std::ptrdiff_t(id[k]);
@@ -406,6 +454,7 @@ class ContinuumTerm {
     volume_now.assign(std::size_t(m_num_nodes), Scalar(0));  // reserved by refresh: no growth
     Scalar e(0);
     for (std::size_t t = 0; t < m_volume.size(); ++t) {
+      if (m_removed[t]) continue;
       const Index* id = &m_tets[4 * t];
       Matrix3<Scalar> Ds;
       load_edges(x, id, Ds);
@@ -428,6 +477,7 @@ class ContinuumTerm {
   [[nodiscard]] Index inverted(const Scalar* x) const noexcept {
     Index count = 0;
     for (std::size_t t = 0; t < m_volume.size(); ++t) {
+      if (m_removed[t]) continue;
       Matrix3<Scalar> Ds;
       load_edges(x, &m_tets[4 * t], Ds);
       if (!(Ds.determinant() > Scalar(0))) ++count;
@@ -573,6 +623,7 @@ class ContinuumTerm {
       Scalar ke(0);
       for (Index s = m_edge_part_start[e]; s < m_edge_part_start[e + 1]; ++s) {
         const auto t = std::size_t(m_edge_part_element[std::size_t(s)]);
+        if (m_removed[t]) continue;
         ke += std::max(Scalar(1), m_c10_large[t] / m_c10[t]) * m_edge_part_k[std::size_t(s)];
       }
       k[m_edges[2 * e]] += Scalar(2) * ke;
@@ -581,6 +632,7 @@ class ContinuumTerm {
     // Volumetric: row sum of sum_a (K / V_a) |grad_i v_a| |grad_j v_a| over j.
     std::vector<Scalar> ring(std::size_t(m_num_nodes), Scalar(0));
     for (std::size_t t = 0; t < m_volume.size(); ++t) {
+      if (m_removed[t]) continue;
       Matrix3<Scalar> Ds;
       Vector3<Scalar> g[4];
       load_edges(x.data(), &m_tets[4 * t], Ds);
@@ -592,7 +644,7 @@ class ContinuumTerm {
     // Element tangents at rest (F = I): row sums of 2 C10_max V (|g_a| |g_b| + |g_a . g_b|) <=
     // 4 C10_max V |g_a| |g_b|, at the stiffer C10 of a bilinear material.
     for (std::size_t t = 0; t < m_volume.size(); ++t) {
-      if (!m_poor_shape[t]) continue;
+      if (!m_poor_shape[t] || m_removed[t]) continue;
       const Scalar c10 = std::max(m_c10[t], m_c10_large[t]);
       Scalar sum(0);
       for (int b = 0; b < 4; ++b) sum += shape_gradient(t, b).norm();
@@ -601,6 +653,7 @@ class ContinuumTerm {
             tangent_margin * Scalar(4) * c10 * m_volume[t] * shape_gradient(t, a).norm() * sum;
     }
     for (std::size_t t = 0; t < m_volume.size(); ++t) {
+      if (m_removed[t]) continue;
       Matrix3<Scalar> Ds;
       Vector3<Scalar> g[4];
       load_edges(x.data(), &m_tets[4 * t], Ds);
@@ -621,6 +674,7 @@ class ContinuumTerm {
     std::vector<std::vector<std::pair<Index, Vector3<Scalar>>>> grad(
         static_cast<std::size_t>(m_num_nodes));
     for (std::size_t t = 0; t < m_volume.size(); ++t) {
+      if (m_removed[t]) continue;
       const Index* id = &m_tets[4 * t];
       Matrix3<Scalar> Ds;
       Vector3<Scalar> g[4];
@@ -847,6 +901,9 @@ class ContinuumTerm {
 
   Index m_num_nodes{0};
   std::vector<Index> m_tets;                                   // 4 per element
+  std::vector<Index> m_element_tet;     // per element: its tetrahedron in the model
+  std::vector<std::uint8_t> m_removed;  // per element: cut or torn (carries nothing)
+  std::vector<Scalar> m_node_volume_whole, m_edge_k_whole;  // before any removal
   std::vector<Scalar> m_dm_inv;                                // 9 per element, column-major D_m^-1
   std::vector<Scalar> m_volume;                                // rest volume per element (m^3)
   std::vector<Scalar> m_c10, m_c10_large, m_q_switch;          // per element

@@ -356,27 +356,13 @@ void ForceModel<Scalar>::refresh(const SphereModel<Scalar>& model) {
   if (m_asleep.size() != std::size_t(n)) m_asleep.assign(std::size_t(n), 0);
   m_immobile.resize(std::size_t(n));
   m_inverse_mass.resize(n);
-  // Links inside a continuum region carry no force: the region's elements do.
-  const Index L = model.num_links();
-  const auto links = model.links();
-  const auto region = model.node_regions();
-  m_force_link.assign(std::size_t(L), 1);
-  for (Index l = 0; l < L; ++l) {
-    const Index r = region[links(l, 0)];
-    if (r == region[links(l, 1)] && model.region(r).law == ForceLaw::continuum)
-      m_force_link[std::size_t(l)] = 0;
-  }
-  m_force_ranges.clear();
-  for (Index l = 0; l < L;) {
-    while (l < L && !m_force_link[std::size_t(l)]) ++l;
-    const Index begin = l;
-    while (l < L && m_force_link[std::size_t(l)]) ++l;
-    if (l > begin) m_force_ranges.emplace_back(begin, l);
-  }
+  m_force_link.assign(std::size_t(model.num_links()), 1);
   // Worst case: every other link active.
+  m_force_ranges.clear();
+  m_force_ranges.reserve(std::size_t(model.num_links()) / 2 + 2);
   m_ranges.reserve(std::size_t(model.num_links()) / 2 + 2);
-  update_mobility(model);
   m_continuum.refresh(model);
+  update_topology(model);
   m_element_force.assign(m_continuum.empty() ? 0 : 3 * std::size_t(n), Scalar(0));
   m_base_rhs.assign(3 * std::size_t(n), Scalar(0));
   m_base_diagonal.assign(3 * std::size_t(n), Scalar(0));
@@ -385,6 +371,31 @@ void ForceModel<Scalar>::refresh(const SphereModel<Scalar>& model) {
   clear_contacts();
   reserve_contacts(1024);
   resize_scratch();
+}
+
+template <typename Scalar>
+void ForceModel<Scalar>::update_topology(const SphereModel<Scalar>& model) noexcept {
+  // Links inside a continuum region carry no force (the region's elements do), nor do broken ones.
+  const Index L = model.num_links();
+  if (Index(m_force_link.size()) != L) return;  // refresh() first
+  const auto links = model.links();
+  const auto region = model.node_regions();
+  const auto intact = model.link_intact();
+  for (Index l = 0; l < L; ++l) {
+    const Index r = region[links(l, 0)];
+    m_force_link[std::size_t(l)] =
+        intact[l] && !(r == region[links(l, 1)] && model.region(r).law == ForceLaw::continuum);
+  }
+  m_force_ranges.clear();  // within the capacity refresh() reserved
+  for (Index l = 0; l < L;) {
+    while (l < L && !m_force_link[std::size_t(l)]) ++l;
+    const Index begin = l;
+    while (l < L && m_force_link[std::size_t(l)]) ++l;
+    if (l > begin) m_force_ranges.emplace_back(begin, l);
+  }
+  m_continuum.apply_topology(model.tetrahedron_intact().data());
+  m_base_h = Scalar(-1);  // the kept rhs and diagonal of prepare_implicit() are stale
+  update_mobility(model);
 }
 
 template <typename Scalar>

@@ -105,10 +105,34 @@ void Simulation<Scalar>::refresh() {
       !(sp.wake_force >= 0))
     throw Error("", "sleep policy", "speeds and time must be non-negative");
 
+  m_topology.refresh(m_model);
+
   m_saved_x.resize(m_model.num_nodes(), 3);
   m_saved_v.resize(m_model.num_nodes(), 3);
   save_state();
   reset_energy_reference();
+}
+
+template <typename Scalar>
+void Simulation<Scalar>::apply_topology_change(TopologyChange& change) noexcept {
+  if (!change.any()) return;
+  m_forces.update_topology(m_model);
+  m_topology.count_pieces(m_model, m_forces.force_links(), change);
+  // The broken links' and elements' energy left the model: a new reference, or the next check
+  // would compare against energy that no longer exists (and a torn link's release is not work).
+  reset_energy_reference();
+}
+
+template <typename Scalar>
+TopologyChange Simulation<Scalar>::cut(const Blade<Scalar>& blade) noexcept {
+  TopologyChange change;
+  if (blade.problem() != nullptr) {
+    change.rejected = true;
+    return change;
+  }
+  change = m_topology.cut(m_model, blade);
+  apply_topology_change(change);
+  return change;
 }
 
 template <typename Scalar>
@@ -358,6 +382,10 @@ StepReport<Scalar> Simulation<Scalar>::step(Scalar dt) noexcept {
       m_external_work += work;
       m_time += dt;
       if (m_options.sleep.enabled) sleep_regions(dt);
+      if (m_topology.tears()) {
+        report.torn = m_topology.tear(m_model);
+        apply_topology_change(report.torn);
+      }
       save_state();
       report.status = level == 0 ? StepStatus::ok : StepStatus::recovered;
       report.energy = energy;

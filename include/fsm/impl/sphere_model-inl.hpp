@@ -65,7 +65,24 @@ Index SphereModel<Scalar>::add_tetrahedron(Index a, Index b, Index c, Index d) {
     m_tetrahedron.resize(4 * std::size_t(t));
     throw;
   }
+  m_tetrahedron_intact.push_back(1);
   return t;
+}
+
+template <typename Scalar>
+Index SphereModel<Scalar>::num_broken_links() const noexcept {
+  return Index(std::count(m_link_intact.begin(), m_link_intact.end(), std::uint8_t(0)));
+}
+
+template <typename Scalar>
+Index SphereModel<Scalar>::num_removed_tetrahedra() const noexcept {
+  return Index(std::count(m_tetrahedron_intact.begin(), m_tetrahedron_intact.end(), std::uint8_t(0)));
+}
+
+template <typename Scalar>
+void SphereModel<Scalar>::restore_topology() noexcept {
+  std::fill(m_link_intact.begin(), m_link_intact.end(), std::uint8_t(1));
+  std::fill(m_tetrahedron_intact.begin(), m_tetrahedron_intact.end(), std::uint8_t(1));
 }
 
 template <typename Scalar>
@@ -123,6 +140,7 @@ Index SphereModel<Scalar>::add_link(Index i, Index j, const VoigtLink<Scalar>& l
     m_switch_strain.pop_back();
     throw;
   }
+  m_link_intact.push_back(1);
   return l;
 }
 
@@ -165,6 +183,7 @@ void SphereModel<Scalar>::reserve(Index nodes, Index links) {
   m_damping.reserve(l);
   m_large_stiffness.reserve(l);
   m_switch_strain.reserve(l);
+  m_link_intact.reserve(l);
 }
 
 template <typename Scalar>
@@ -374,7 +393,8 @@ SphereModel<Other> SphereModel<Scalar>::cast() const {
     out.m_regions.push_back({r.name,
                              Material<Other>{Other(m.density), Other(m.youngs_modulus),
                                              Other(m.viscosity), Other(m.large_strain_modulus),
-                                             Other(m.switch_strain), Other(m.poisson_ratio)},
+                                             Other(m.switch_strain), Other(m.poisson_ratio),
+                                             Other(m.tear_strain)},
                              r.law});
   }
   auto conv = [](const std::vector<Scalar>& v) { return std::vector<Other>(v.begin(), v.end()); };
@@ -392,6 +412,8 @@ SphereModel<Other> SphereModel<Scalar>::cast() const {
   out.m_large_stiffness = conv(m_large_stiffness);
   out.m_switch_strain = conv(m_switch_strain);
   out.m_tetrahedron = m_tetrahedron;
+  out.m_link_intact = m_link_intact;
+  out.m_tetrahedron_intact = m_tetrahedron_intact;
   return out;
 }
 

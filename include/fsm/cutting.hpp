@@ -1,0 +1,348 @@
+#pragma once
+
+/// @file cutting.hpp
+/// @brief Topology changes: a blade that cuts the links and tetrahedra it sweeps through, and
+/// tearing of links (and the tetrahedra that share them) strained past their material's limit
+/// (docs/physics.md section 12).
+///
+/// A broken link or removed tetrahedron stays in the model's arrays with its intact flag at 0
+/// (SphereModel::link_intact(), tetrahedron_intact()): indices stay valid, nothing is allocated,
+/// the nodes keep their mass. The force model then leaves it out (ForceModel::update_topology()).
+
+#include <algorithm>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "fsm/error.hpp"
+#include "fsm/sphere_model.hpp"
+#include "fsm/types.hpp"
+
+namespace fsm {
+
+/// @brief A cutting edge (a segment, the blade's edge) swept over one step: from `start_a` -
+/// `start_b` to `end_a` - `end_b` (m). It cuts what crosses the ruled surface between the two
+/// segments (two triangles: start_a, start_b, end_b and start_a, end_b, end_a).
+template <typename Scalar>
+struct Blade {
+  Vector3<Scalar> start_a{Vector3<Scalar>::Zero()}, start_b{Vector3<Scalar>::Zero()};
+  Vector3<Scalar> end_a{Vector3<Scalar>::Zero()}, end_b{Vector3<Scalar>::Zero()};
+
+  /// @brief Why the blade is not valid (a non-finite point, an edge of zero length at the start
+  /// or the end), or nullptr. A blade that does not move is valid and cuts nothing.
+  [[nodiscard]] const char* problem() const noexcept {
+    if (!(start_a.allFinite() && start_b.allFinite() && end_a.allFinite() && end_b.allFinite()))
+      return "an end point is not finite";
+    if (!((start_b - start_a).norm() > Scalar(0)) || !((end_b - end_a).norm() > Scalar(0)))
+      return "its edge has zero length";
+    return nullptr;
+  }
+  /// @brief fsm::Error ("blade", problem()) if the blade is not valid.
+  void validate() const {
+    if (const char* p = problem()) throw Error("", "blade", p);
+  }
+};
+
+/// @brief True if the segment p-q crosses the triangle a, b, c (touching counts). No allocation.
+/// Möller and Trumbore's test on the segment's parameter in [0, 1]; a degenerate triangle is
+/// crossed by nothing.
+template <typename Scalar>
+[[nodiscard]] bool segment_crosses_triangle(const Vector3<Scalar>& p, const Vector3<Scalar>& q,
+                                            const Vector3<Scalar>& a, const Vector3<Scalar>& b,
+                                            const Vector3<Scalar>& c) noexcept {
+  const Vector3<Scalar> d = q - p, e1 = b - a, e2 = c - a;
+  const Vector3<Scalar> s = d.cross(e2);
+  const Scalar det = e1.dot(s);
+  const Scalar scale = e1.norm() * e2.norm() * d.norm();
+  if (!(std::abs(det) > std::numeric_limits<Scalar>::epsilon() * Scalar(16) * scale))
+    return false;  // parallel, or degenerate
+  const Scalar inv = Scalar(1) / det;
+  const Vector3<Scalar> t = p - a;
+  const Scalar u = t.dot(s) * inv;
+  if (u < Scalar(0) || u > Scalar(1)) return false;
+  const Vector3<Scalar> r = t.cross(e1);
+  const Scalar v = d.dot(r) * inv;
+  if (v < Scalar(0) || u + v > Scalar(1)) return false;
+  const Scalar w = e2.dot(r) * inv;  // the segment's parameter
+  return w >= Scalar(0) && w <= Scalar(1);
+}
+
+/// @brief True if the segment p-q crosses the surface the blade swept.
+template <typename Scalar>
+[[nodiscard]] bool segment_crosses_blade(const Vector3<Scalar>& p, const Vector3<Scalar>& q,
+                                         const Blade<Scalar>& blade) noexcept {
+  return segment_crosses_triangle(p, q, blade.start_a, blade.start_b, blade.end_b) ||
+         segment_crosses_triangle(p, q, blade.start_a, blade.end_b, blade.end_a);
+}
+
+/// @brief What a cut or a tear changed.
+struct TopologyChange {
+  Index links_cut{0};         ///< Links the blade crossed.
+  Index tetrahedra_cut{0};    ///< Tetrahedra with an edge the blade crossed.
+  Index links_torn{0};        ///< Links strained past their tear strain.
+  Index tetrahedra_torn{0};   ///< Tetrahedra that shared a torn link.
+  /// Links, and tetrahedra, broken in the model but not recorded in the lists below because they
+  /// were full (never happens with the capacity refresh() reserves; kept for safety).
+  Index unrecorded{0};
+  /// After a change: the pieces the model is in (joined by links that carry force or by intact
+  /// continuum tetrahedra), and how many of them hold no fixed node (they fall: allowed, and
+  /// reported). 0 and 0 when nothing changed.
+  Index pieces{0}, loose_pieces{0};
+  /// The blade was not valid (Blade::validate() says why): nothing changed.
+  bool rejected{false};
+  [[nodiscard]] bool any() const noexcept {
+    return links_cut + tetrahedra_cut + links_torn + tetrahedra_torn > 0;
+  }
+  TopologyChange& operator+=(const TopologyChange& o) noexcept {
+    links_cut += o.links_cut;
+    tetrahedra_cut += o.tetrahedra_cut;
+    links_torn += o.links_torn;
+    tetrahedra_torn += o.tetrahedra_torn;
+    unrecorded += o.unrecorded;
+    if (o.pieces > 0) {
+      pieces = o.pieces;
+      loose_pieces = o.loose_pieces;
+    }
+    rejected = rejected || o.rejected;
+    return *this;
+  }
+};
+
+/// @brief Cuts and tears a SphereModel's links and tetrahedra in the real-time step.
+///
+/// refresh() (allocates) builds which tetrahedra share each link, the links' tear strains (the
+/// smaller of the two nodes' regions' Material::tear_strain; writable per link afterwards, e.g.
+/// for an attachment) and room for the event lists; cut() and tear() then allocate nothing, never
+/// throw, and are deterministic (links and tetrahedra are visited in index order).
+template <typename Scalar>
+class TopologyEditor {
+ public:
+  TopologyEditor() = default;
+  explicit TopologyEditor(const SphereModel<Scalar>& model) { refresh(model); }
+
+  /// @brief Re-derives everything from the model (allocates). Per-link tear strains set by hand
+  /// are replaced by the materials' values.
+  void refresh(const SphereModel<Scalar>& model) {
+    const Index L = model.num_links(), T = model.num_tetrahedra();
+    m_num_links = L;
+    m_num_tetrahedra = T;
+    const auto links = model.links();
+    const auto region = model.node_regions();
+    m_tear.resize(L);
+    for (Index l = 0; l < L; ++l)
+      m_tear[l] = std::min(model.region(region[links(l, 0)]).material.tear_strain,
+                           model.region(region[links(l, 1)]).material.tear_strain);
+    // The tetrahedra at each link (CSR): match the tetrahedra's edges to the links.
+    std::vector<std::pair<std::uint64_t, Index>> keys;  // (edge key, tetrahedron)
+    keys.reserve(6 * std::size_t(T));
+    const auto tets = model.tetrahedra();
+    for (Index t = 0; t < T; ++t)
+      for (int a = 0; a < 4; ++a)
+        for (int b = a + 1; b < 4; ++b) keys.emplace_back(edge_key(tets(t, a), tets(t, b)), t);
+    std::sort(keys.begin(), keys.end());
+    m_link_tet_start.assign(std::size_t(L) + 1, 0);
+    m_link_tets.clear();
+    for (Index l = 0; l < L; ++l) {
+      const std::uint64_t key = edge_key(links(l, 0), links(l, 1));
+      auto it = std::lower_bound(keys.begin(), keys.end(), std::make_pair(key, Index(-1)));
+      for (; it != keys.end() && it->first == key; ++it) m_link_tets.push_back(it->second);
+      m_link_tet_start[std::size_t(l) + 1] = Index(m_link_tets.size());
+    }
+    m_broken_links.clear();
+    m_broken_links.reserve(std::size_t(L));
+    m_removed_tetrahedra.clear();
+    m_removed_tetrahedra.reserve(std::size_t(T));
+    m_tears = std::any_of(m_tear.data(), m_tear.data() + L,
+                          [](Scalar s) { return s < std::numeric_limits<Scalar>::infinity(); });
+    m_parent.resize(std::size_t(model.num_nodes()));
+    m_piece_fixed.resize(std::size_t(model.num_nodes()));
+  }
+
+  /// @brief Counts the pieces of the model, joined by the links with `force_link` set
+  /// (ForceModel::force_links()) and by the intact tetrahedra of continuum regions, into
+  /// `change.pieces`, and those without a fixed node into `change.loose_pieces`. No allocation.
+  void count_pieces(const SphereModel<Scalar>& model, const std::vector<std::uint8_t>& force_link,
+                    TopologyChange& change) noexcept {
+    const Index n = model.num_nodes();
+    if (std::size_t(n) != m_parent.size() || force_link.size() != std::size_t(m_num_links) ||
+        !sized_for(model))
+      return;
+    for (Index i = 0; i < n; ++i) m_parent[std::size_t(i)] = i;
+    auto find = [&](Index i) {
+      while (m_parent[std::size_t(i)] != i) {
+        m_parent[std::size_t(i)] = m_parent[std::size_t(m_parent[std::size_t(i)])];  // halving
+        i = m_parent[std::size_t(i)];
+      }
+      return i;
+    };
+    auto join = [&](Index a, Index b) {
+      a = find(a);
+      b = find(b);
+      if (a != b) m_parent[std::size_t(std::max(a, b))] = std::min(a, b);  // deterministic
+    };
+    const auto links = model.links();
+    for (Index l = 0; l < m_num_links; ++l)
+      if (force_link[std::size_t(l)]) join(links(l, 0), links(l, 1));
+    const auto tets = model.tetrahedra();
+    const auto intact = model.tetrahedron_intact();
+    const auto region = model.node_regions();
+    for (Index t = 0; t < m_num_tetrahedra; ++t)
+      if (intact[t] && model.region(region[tets(t, 0)]).law == ForceLaw::continuum)
+        for (int k = 1; k < 4; ++k) join(tets(t, 0), tets(t, k));
+    std::fill(m_piece_fixed.begin(), m_piece_fixed.end(), std::uint8_t(0));
+    const auto fixed = model.fixed();
+    change.pieces = 0;
+    for (Index i = 0; i < n; ++i) {
+      const Index r = find(i);
+      if (r == i) ++change.pieces;
+      if (fixed[i]) m_piece_fixed[std::size_t(r)] = 1;
+    }
+    change.loose_pieces = 0;
+    for (Index i = 0; i < n; ++i)
+      if (m_parent[std::size_t(i)] == i && !m_piece_fixed[std::size_t(i)]) ++change.loose_pieces;
+  }
+  /// @brief After count_pieces(): the piece of node i (its smallest node index).
+  [[nodiscard]] Index piece(Index i) const noexcept {
+    while (m_parent[std::size_t(i)] != i) i = m_parent[std::size_t(i)];
+    return i;
+  }
+
+  /// @brief The strain (l - l0) / l0 past which each link tears (`|L|`; infinity = never).
+  /// Writable: call refresh_tearing() after editing it.
+  Eigen::Map<ScalarArray<Scalar>> tear_strains() noexcept { return {m_tear.data(), m_num_links}; }
+  [[nodiscard]] Eigen::Map<const ScalarArray<Scalar>> tear_strains() const noexcept {
+    return {m_tear.data(), m_num_links};
+  }
+  /// @brief Re-reads whether any link can tear after tear_strains() was edited. Throws
+  /// fsm::Error for a tear strain that is not positive (NaN included).
+  void refresh_tearing() {
+    for (Index l = 0; l < m_num_links; ++l)
+      if (!(m_tear[l] > Scalar(0)))
+        throw Error("", "link " + std::to_string(l),
+                    "tear strain " + std::to_string(m_tear[l]) +
+                        " must be positive (infinity = never tears)");
+    m_tears = std::any_of(m_tear.data(), m_tear.data() + m_num_links,
+                          [](Scalar s) { return s < std::numeric_limits<Scalar>::infinity(); });
+  }
+  /// @brief True when some link has a finite tear strain (else tear() has nothing to do).
+  [[nodiscard]] bool tears() const noexcept { return m_tears; }
+
+  /// @brief Breaks every intact link whose segment at the model's positions crosses the blade's
+  /// swept surface, and removes every intact tetrahedron with an edge that does. The lists of
+  /// broken links and removed tetrahedra are cleared first. Does nothing if the model changed size
+  /// since refresh(). No allocation; never throws (validate the blade beforehand).
+  TopologyChange cut(SphereModel<Scalar>& model, const Blade<Scalar>& blade) noexcept {
+    TopologyChange change;
+    clear_events();
+    if (!sized_for(model)) return change;
+    Vector3<Scalar> lo = blade.start_a.cwiseMin(blade.start_b).cwiseMin(blade.end_a).cwiseMin(
+        blade.end_b);
+    Vector3<Scalar> hi = blade.start_a.cwiseMax(blade.start_b).cwiseMax(blade.end_a).cwiseMax(
+        blade.end_b);
+    const auto x = model.positions();
+    const auto links = model.links();
+    auto intact = model.link_intact();
+    auto crosses = [&](Index i, Index j) {
+      const Vector3<Scalar> p = x.row(i).transpose(), q = x.row(j).transpose();
+      if ((p.cwiseMax(q).array() < lo.array()).any() || (p.cwiseMin(q).array() > hi.array()).any())
+        return false;
+      return segment_crosses_blade(p, q, blade);
+    };
+    for (Index l = 0; l < m_num_links; ++l) {
+      if (!intact[l] || !crosses(links(l, 0), links(l, 1))) continue;
+      intact[l] = 0;
+      ++change.links_cut;
+      record_link(l, change);
+    }
+    const auto tets = model.tetrahedra();
+    auto tet_intact = model.tetrahedron_intact();
+    for (Index t = 0; t < m_num_tetrahedra; ++t) {
+      if (!tet_intact[t]) continue;
+      bool cut = false;
+      for (int a = 0; a < 4 && !cut; ++a)
+        for (int b = a + 1; b < 4 && !cut; ++b) cut = crosses(tets(t, a), tets(t, b));
+      if (!cut) continue;
+      tet_intact[t] = 0;
+      ++change.tetrahedra_cut;
+      record_tetrahedron(t, change);
+    }
+    return change;
+  }
+
+  /// @brief Breaks every intact link stretched past its tear strain at the model's positions, and
+  /// removes the intact tetrahedra that share it. Clears the lists first. No allocation.
+  TopologyChange tear(SphereModel<Scalar>& model) noexcept {
+    TopologyChange change;
+    clear_events();
+    if (!m_tears || !sized_for(model)) return change;
+    const auto x = model.positions();
+    const auto links = model.links();
+    const auto l0 = model.rest_lengths();
+    auto intact = model.link_intact();
+    auto tet_intact = model.tetrahedron_intact();
+    for (Index l = 0; l < m_num_links; ++l) {
+      if (!intact[l] || !(m_tear[l] < std::numeric_limits<Scalar>::infinity())) continue;
+      const Scalar length = (x.row(links(l, 1)) - x.row(links(l, 0))).norm();
+      if (!(length > l0[l] * (Scalar(1) + m_tear[l]))) continue;
+      intact[l] = 0;
+      ++change.links_torn;
+      record_link(l, change);
+      for (Index k = m_link_tet_start[std::size_t(l)]; k < m_link_tet_start[std::size_t(l) + 1];
+           ++k) {
+        const Index t = m_link_tets[std::size_t(k)];
+        if (!tet_intact[t]) continue;
+        tet_intact[t] = 0;
+        ++change.tetrahedra_torn;
+        record_tetrahedron(t, change);
+      }
+    }
+    return change;
+  }
+
+  /// @brief The links broken, and the tetrahedra removed, by the last cut() or tear(), in index
+  /// order.
+  [[nodiscard]] const std::vector<Index>& broken_links() const noexcept { return m_broken_links; }
+  [[nodiscard]] const std::vector<Index>& removed_tetrahedra() const noexcept {
+    return m_removed_tetrahedra;
+  }
+  void clear_events() noexcept {
+    m_broken_links.clear();
+    m_removed_tetrahedra.clear();
+  }
+  /// @brief The tetrahedra that have link l as an edge.
+  [[nodiscard]] std::pair<const Index*, const Index*> tetrahedra_at_link(Index l) const noexcept {
+    const Index* base = m_link_tets.data();
+    return {base + m_link_tet_start[std::size_t(l)], base + m_link_tet_start[std::size_t(l) + 1]};
+  }
+
+ private:
+  static std::uint64_t edge_key(Index a, Index b) noexcept {
+    if (a > b) std::swap(a, b);
+    return (std::uint64_t(std::uint32_t(a)) << 32) | std::uint32_t(b);
+  }
+  [[nodiscard]] bool sized_for(const SphereModel<Scalar>& model) const noexcept {
+    return model.num_links() == m_num_links && model.num_tetrahedra() == m_num_tetrahedra;
+  }
+  void record_link(Index l, TopologyChange& change) noexcept {
+    if (m_broken_links.size() < m_broken_links.capacity())
+      m_broken_links.push_back(l);
+    else
+      ++change.unrecorded;
+  }
+  void record_tetrahedron(Index t, TopologyChange& change) noexcept {
+    if (m_removed_tetrahedra.size() < m_removed_tetrahedra.capacity())
+      m_removed_tetrahedra.push_back(t);
+    else
+      ++change.unrecorded;
+  }
+
+  Index m_num_links{0}, m_num_tetrahedra{0};
+  ScalarArray<Scalar> m_tear;
+  bool m_tears{false};
+  std::vector<Index> m_link_tet_start, m_link_tets;
+  std::vector<Index> m_broken_links, m_removed_tetrahedra;
+  std::vector<Index> m_parent;               // union-find over the nodes (count_pieces)
+  std::vector<std::uint8_t> m_piece_fixed;  // per root: the piece has a fixed node
+};
+
+}  // namespace fsm
