@@ -148,6 +148,34 @@ TYPED_TEST(NoAllocation, CutAndTearAllocateNothing) {
   }
 }
 
+// A grasper gripping, pulling and releasing through the steps.
+TYPED_TEST(NoAllocation, GraspingAllocatesNothing) {
+  using S = TypeParam;
+  Simulation<S> sim(jittered_block<S>());
+  collision::Grasper<S> grasper(sim.model(), sim.forces(), collision::GrasperOptions<S>{}, S(0.6));
+  collision::Pose<S> pose;
+  pose.position = Vector3<S>(S(0.004), S(0.01), S(0.02));
+  (void)sim.step(S(1e-3));
+  Index grasped = 0, released = 0;
+  g_allocations = 0;
+  g_counting = true;
+  for (int s = 0; s < 60; ++s) {
+    const S opening = s < 5 ? S(0.6) : s < 50 ? S(0.05) : S(0.6);
+    const Vector3<S> velocity(0, 0, S(0.01));
+    const collision::GraspEvent e =
+        grasper.update(sim.model(), sim.forces(), pose, velocity, Vector3<S>::Zero(), opening);
+    grasped += e.grasped;
+    released += e.released;
+    (void)sim.step(S(1e-3));
+    (void)grasper.wrench(sim.forces());
+    pose.position.z() += S(1e-5);
+  }
+  g_counting = false;
+  EXPECT_EQ(g_allocations.load(), 0);
+  EXPECT_GT(grasped, 0);
+  EXPECT_EQ(released, grasped);
+}
+
 // Skinning runs every render frame: it must not allocate either (both binding kinds).
 TEST(NoAllocation, SkinEvaluation) {
   Skin<double> skin;

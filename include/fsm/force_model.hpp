@@ -71,6 +71,31 @@ struct PenaltyContact {
   Scalar normal_block{0}, tangent_block{0};
 };
 
+/// @brief A node held to a moving point (a grasper's jaw, collision::Grasper): a bilateral
+/// spring-damper taken into the implicit solve, \f$\mathbf{F} = k(\mathbf{p}(t) - \mathbf{x}) +
+/// c(\dot{\mathbf{p}} - \mathbf{v})\f$ with \f$\mathbf{p}(t) = \mathbf{p}_0 + t\,\dot{\mathbf{p}}\f$,
+/// t the contact time (ForceModel::contact_time()). Unlike a PenaltyContact it pulls as well as
+/// pushes (docs/physics.md section 12).
+template <typename Scalar>
+struct HeldNode {
+  Index node{-1};        ///< The sphere held.
+  Index instrument{-1};  ///< Who holds it (for the wrench), or -1.
+  Vector3<Scalar> target{Vector3<Scalar>::Zero()};           ///< \f$\mathbf{p}_0\f$ (m).
+  Vector3<Scalar> target_velocity{Vector3<Scalar>::Zero()};  ///< \f$\dot{\mathbf{p}}\f$ (m/s).
+  Scalar stiffness{0};  ///< k (N/m), > 0.
+  Scalar damping{0};    ///< c (N s/m), >= 0.
+  /// Force on the node (N) at the end of the last accepted step (ForceModel::finish_contacts).
+  Vector3<Scalar> force{Vector3<Scalar>::Zero()};
+  /// The force at the positions and velocities x, v (row-major `|V| x 3`) and contact time t.
+  [[nodiscard]] Vector3<Scalar> force_at(const Scalar* x, const Scalar* v, Scalar t) const noexcept {
+    const Scalar* xi = x + 3 * std::ptrdiff_t(node);
+    const Scalar* vi = v + 3 * std::ptrdiff_t(node);
+    const Vector3<Scalar> p = target + t * target_velocity;
+    return stiffness * (p - Vector3<Scalar>(xi[0], xi[1], xi[2])) +
+           damping * (target_velocity - Vector3<Scalar>(vi[0], vi[1], vi[2]));
+  }
+};
+
 /// @brief The force field of a SphereModel: Voigt links, the continuum law's elements, penalty
 /// contacts, gravity and per-node external forces.
 ///
@@ -177,6 +202,15 @@ class ForceModel {
   /// force and \f$h^2 k\,\mathbf{n}(\mathbf{n}\cdot\mathbf{v}_s)\f$ (the instrument's motion
   /// over the step), as prepare_implicit() does for the matrix-free solve; marks them `in_solve`.
   void add_contact_linearisation(const SphereModel<Scalar>& model, Scalar h, Scalar* rhs) noexcept;
+  /// @brief Makes room for `capacity` held nodes (allocates; collision::Grasper calls it).
+  void reserve_held(Index capacity);
+  /// @brief Releases every held node.
+  void clear_held() noexcept { m_num_held = 0; }
+  /// @brief Holds a node; false (nothing added) when the capacity is full or the values are bad
+  /// (node out of range, stiffness not positive, damping negative, a point not finite).
+  bool add_held(const HeldNode<Scalar>& held) noexcept;
+  [[nodiscard]] Index num_held() const noexcept { return m_num_held; }
+  [[nodiscard]] const HeldNode<Scalar>* held() const noexcept { return m_held.data(); }
   /// @brief The work (J) the contacts did on the spheres' displacements from `x_before` to the
   /// model's positions over the last step: after an implicit step, the end-of-step force of the
   /// linear law of each contact the solve took (none for the others); after an explicit one, the
@@ -313,6 +347,8 @@ class ForceModel {
   detail::PoolHandle m_pool;
   std::vector<PenaltyContact<Scalar>> m_contacts;
   Index m_num_contacts{0};
+  std::vector<HeldNode<Scalar>> m_held;
+  Index m_num_held{0};
   Scalar m_contact_time{0};
   bool m_contacts_linearised{false};       // the last step was implicit (contact_work's accounting)
   std::vector<std::uint8_t> m_force_link;  // per link: carries force

@@ -4,6 +4,7 @@
 /// @brief Umbrella header for the libfsm runtime.
 
 #include "fsm/collision/contact.hpp"
+#include "fsm/collision/grasper.hpp"
 #include "fsm/collision/shapes.hpp"
 #include "fsm/collision/triangle_bvh.hpp"
 #include "fsm/error.hpp"

@@ -227,6 +227,23 @@ bool ForceModel<Scalar>::add_contact(const PenaltyContact<Scalar>& contact) noex
 }
 
 template <typename Scalar>
+void ForceModel<Scalar>::reserve_held(Index capacity) {
+  if (capacity > Index(m_held.size())) m_held.resize(std::size_t(capacity));
+}
+
+template <typename Scalar>
+bool ForceModel<Scalar>::add_held(const HeldNode<Scalar>& held) noexcept {
+  if (m_num_held >= Index(m_held.size())) return false;
+  if (held.node < 0 || held.node >= m_num_nodes || !(held.stiffness > Scalar(0)) ||
+      !std::isfinite(held.stiffness) || !(held.damping >= Scalar(0)) ||
+      !std::isfinite(held.damping) || !held.target.allFinite() ||
+      !held.target_velocity.allFinite())
+    return false;
+  m_held[std::size_t(m_num_held++)] = held;
+  return true;
+}
+
+template <typename Scalar>
 void ForceModel<Scalar>::start_contacts(const SphereModel<Scalar>& model) noexcept {
   const Scalar* x = model.positions().data();
   const Scalar* v = model.velocities().data();
@@ -252,6 +269,10 @@ void ForceModel<Scalar>::finish_contacts(const SphereModel<Scalar>& model) noexc
     Vector3<Scalar> slip;
     c.force = detail::contact_force(c, x, v, detail::surface_advance(c, m_contact_time), fn, slip);
   }
+  for (Index k = 0; k < m_num_held; ++k) {
+    HeldNode<Scalar>& hn = m_held[std::size_t(k)];
+    hn.force = hn.force_at(x, v, m_contact_time);
+  }
 }
 
 template <typename Scalar>
@@ -267,6 +288,14 @@ Index ForceModel<Scalar>::limit_contact_stiffness(const SphereModel<Scalar>& mod
     if (!(c.stiffness > cap)) continue;
     c.damping *= std::sqrt(cap / c.stiffness);
     c.stiffness = cap;
+    ++softened;
+  }
+  for (Index k = 0; k < m_num_held; ++k) {
+    HeldNode<Scalar>& hn = m_held[std::size_t(k)];
+    const Scalar cap = Scalar(0.5) * mass[hn.node] / (h * h);
+    if (!(hn.stiffness > cap)) continue;
+    hn.damping *= std::sqrt(cap / hn.stiffness);
+    hn.stiffness = cap;
     ++softened;
   }
   return softened;
@@ -296,6 +325,12 @@ void ForceModel<Scalar>::add_contact_linearisation(const SphereModel<Scalar>& mo
       if (c.other >= 0 && !m_immobile[std::size_t(c.other)]) rhs[3 * c.other + a] -= r[a];
     }
   }
+  // Held nodes: the point's motion over the step (their force and Jacobians are in the rest).
+  for (Index k = 0; k < m_num_held; ++k) {
+    const HeldNode<Scalar>& hn = m_held[std::size_t(k)];
+    if (m_immobile[std::size_t(hn.node)]) continue;
+    for (int a = 0; a < 3; ++a) rhs[3 * hn.node + a] += h * h * hn.stiffness * hn.target_velocity[a];
+  }
 }
 
 template <typename Scalar>
@@ -322,6 +357,13 @@ Scalar ForceModel<Scalar>::contact_work(const SphereModel<Scalar>& model,
       F = Scalar(0.5) * (c.start_force + c.force);  // trapezoid: exact for a linear spring
     }
     w += F.dot(d);
+  }
+  // Held nodes: backward Euler applies their end-of-step force (so does an explicit step's end
+  // force bound the work of a spring being stretched).
+  for (Index k = 0; k < m_num_held; ++k) {
+    const HeldNode<Scalar>& hn = m_held[std::size_t(k)];
+    const Vector3<Scalar> d = (x.row(hn.node) - x_before.row(hn.node)).transpose();
+    w += hn.force_at(xp, vp, m_contact_time).dot(d);
   }
   return w;
 }
@@ -370,6 +412,8 @@ void ForceModel<Scalar>::refresh(const SphereModel<Scalar>& model) {
   // Contacts name nodes of the old model: forget them; keep (at least 1024 of) the capacity.
   clear_contacts();
   reserve_contacts(1024);
+  clear_held();
+  reserve_held(256);
   resize_scratch();
 }
 
@@ -512,6 +556,10 @@ void ForceModel<Scalar>::evaluate(const SphereModel<Scalar>& model, const ConstP
         detail::contact_force(c, xp, vp, detail::surface_advance(c, m_contact_time), fn, slip);
     f.row(c.node) += F.transpose();
     if (c.other >= 0) f.row(c.other) -= F.transpose();
+  }
+  for (Index k = 0; k < m_num_held; ++k) {
+    const HeldNode<Scalar>& hn = m_held[std::size_t(k)];
+    f.row(hn.node) += hn.force_at(xp, vp, m_contact_time).transpose();
   }
 }
 
@@ -690,6 +738,15 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
       if (c.other >= 0) diagonal(c.other, a) += diag;
     }
   }
+  // Held nodes: h F + h^2 k (v_p - v) into the rhs, (h^2 k + h c) I into A.
+  for (Index k = 0; k < m_num_held; ++k) {
+    const HeldNode<Scalar>& hn = m_held[std::size_t(k)];
+    const Vector3<Scalar> vi = model.velocities().row(hn.node).transpose();
+    const Vector3<Scalar> r =
+        h * hn.force_at(x, v, m_contact_time) + h2 * hn.stiffness * (hn.target_velocity - vi);
+    rhs.row(hn.node) += r.transpose();
+    diagonal.row(hn.node).array() += h2 * hn.stiffness + h * hn.damping;
+  }
   for (Index i = 0; i < model.num_nodes(); ++i) {
     if (m_immobile[std::size_t(i)]) {
       rhs.row(i).setZero();
@@ -734,6 +791,12 @@ void ForceModel<Scalar>::implicit_diagonal_blocks(const SphereModel<Scalar>& mod
     const Scalar nv[3] = {c.normal[0], c.normal[1], c.normal[2]};
     add(c.node, nv, c.normal_block - c.tangent_block, c.tangent_block);
     if (c.other >= 0) add(c.other, nv, c.normal_block - c.tangent_block, c.tangent_block);
+  }
+  const Scalar h = m_implicit_h;
+  for (Index k = 0; k < m_num_held; ++k) {
+    const HeldNode<Scalar>& hn = m_held[std::size_t(k)];
+    const Scalar zero[3] = {0, 0, 0};
+    add(hn.node, zero, Scalar(0), h * h * hn.stiffness + h * hn.damping);
   }
   for (Index i = 0; i < n; ++i)
     if (m_immobile[std::size_t(i)]) {
@@ -791,6 +854,11 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
         c.tangent_block * q + (c.normal_block - c.tangent_block) * c.normal.dot(q) * c.normal;
     y.row(c.node) += g.transpose();
     if (c.other >= 0) y.row(c.other) -= g.transpose();
+  }
+  for (Index k = 0; k < m_num_held; ++k) {
+    const HeldNode<Scalar>& hn = m_held[std::size_t(k)];
+    const Scalar h = m_implicit_h;
+    y.row(hn.node) += (h * h * hn.stiffness + h * hn.damping) * p.row(hn.node);
   }
   for (Index i = 0; i < model.num_nodes(); ++i)
     if (m_immobile[std::size_t(i)]) y.row(i).setZero();
@@ -856,6 +924,10 @@ typename ForceModel<Scalar>::SparseMatrix ForceModel<Scalar>::stiffness_matrix(
         c, detail::contact_depth(c, x, detail::surface_advance(c, m_contact_time)));
     return Matrix3<Scalar>(slope * c.stiffness * c.normal * c.normal.transpose());
   });
+  for (Index k = 0; k < m_num_held; ++k)
+    for (int r = 0; r < 3; ++r)
+      trip.emplace_back(3 * m_held[std::size_t(k)].node + r, 3 * m_held[std::size_t(k)].node + r,
+                        -m_held[std::size_t(k)].stiffness);
   if (!m_continuum.empty()) {
     detail::ContinuumTerm<Scalar> elements = m_continuum;  // its scratch is used
     {
@@ -935,6 +1007,10 @@ typename ForceModel<Scalar>::SparseMatrix ForceModel<Scalar>::damping_matrix(
         }
       }
   }
+  for (Index k = 0; k < m_num_held; ++k)
+    for (int r = 0; r < 3; ++r)
+      trip.emplace_back(3 * m_held[std::size_t(k)].node + r, 3 * m_held[std::size_t(k)].node + r,
+                        -m_held[std::size_t(k)].damping);
   SparseMatrix D(3 * n, 3 * n);
   D.setFromTriplets(trip.begin(), trip.end());
   return D;

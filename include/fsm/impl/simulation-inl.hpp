@@ -161,7 +161,7 @@ void Simulation<Scalar>::set_region_asleep(Index r, bool asleep) noexcept {
   }
 }
 
-// The load on each node: external forces plus the penalty contacts' last forces.
+// The load on each node: external forces plus the penalty contacts' and held nodes' last forces.
 template <typename Scalar>
 void Simulation<Scalar>::update_load() noexcept {
   m_load = m_forces.external_forces();  // same size: no allocation
@@ -170,6 +170,9 @@ void Simulation<Scalar>::update_load() noexcept {
     m_load.row(c[k].node) += c[k].force.transpose();
     if (c[k].other >= 0) m_load.row(c[k].other) -= c[k].force.transpose();
   }
+  const HeldNode<Scalar>* held = m_forces.held();
+  for (Index k = 0; k < m_forces.num_held(); ++k)
+    m_load.row(held[k].node) += held[k].force.transpose();
 }
 
 // Before a step: wake asleep regions with a load on them or a moving neighbour. True if any woke.
