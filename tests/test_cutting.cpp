@@ -2,8 +2,12 @@
 
 #include "fsm/cutting.hpp"
 
+#include "fsm/cut_surface.hpp"
+
 #include <gtest/gtest.h>
 
+#include <array>
+#include <map>
 #include <set>
 
 #include "common.hpp"
@@ -160,6 +164,163 @@ TEST_P(CutBar, ForcesStayBalancedAfterTheCut) {
 
 INSTANTIATE_TEST_SUITE_P(BothLaws, CutBar, ::testing::Values(ForceLaw::links, ForceLaw::continuum),
                          [](const auto& p) { return std::string(to_string(p.param)); });
+
+// A skin over the filling's own boundary: one render vertex per boundary sphere, bound to it
+// through the first tetrahedron that has it.
+Skin<double> boundary_skin(const SphereModel<double>& model) {
+  std::map<std::array<Index, 3>, std::pair<int, std::array<Index, 3>>> faces;
+  const auto tets = model.tetrahedra();
+  static constexpr int face[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+  for (Index t = 0; t < model.num_tetrahedra(); ++t)
+    for (int k = 0; k < 4; ++k) {
+      std::array<Index, 3> f{tets(t, face[k][0]), tets(t, face[k][1]), tets(t, face[k][2])};
+      std::array<Index, 3> key = f;
+      std::sort(key.begin(), key.end());
+      auto& e = faces[key];
+      ++e.first;
+      e.second = f;
+    }
+  std::map<Index, Index> vertex;  // sphere -> render vertex
+  std::vector<std::array<Index, 3>> out;
+  for (const auto& [key, e] : faces) {
+    if (e.first != 1) continue;
+    std::array<Index, 3> f{};
+    for (int k = 0; k < 3; ++k) {
+      auto it = vertex.emplace(e.second[std::size_t(k)], Index(vertex.size())).first;
+      f[std::size_t(k)] = it->second;
+    }
+    out.push_back(f);
+  }
+  Skin<double> skin;
+  const Index nv = Index(vertex.size());
+  skin.rest.vertices.resize(nv, 3);
+  skin.rest.faces.resize(Index(out.size()), 3);
+  for (std::size_t f = 0; f < out.size(); ++f)
+    for (int k = 0; k < 3; ++k) skin.rest.faces(Index(f), k) = out[f][std::size_t(k)];
+  skin.kind.setZero(nv);
+  skin.nodes.resize(nv, 4);
+  skin.weights.setZero(nv, 4);
+  skin.offsets.setZero(nv, 3);
+  for (const auto& [sphere, v] : vertex) {
+    skin.rest.vertices.row(v) = model.rest_positions().row(sphere);
+    for (Index t = 0; t < model.num_tetrahedra(); ++t) {
+      int at = -1;
+      for (int k = 0; k < 4; ++k)
+        if (tets(t, k) == sphere) at = k;
+      if (at < 0) continue;
+      skin.nodes.row(v) = tets.row(t);
+      skin.weights(v, at) = 1;
+      break;
+    }
+  }
+  skin.surfaces.push_back({"block", 0, nv, 0, Index(out.size())});
+  skin.validate(model.num_nodes());
+  return skin;
+}
+
+// The render surface of a cut: no visible face spans the cut, the wound's walls appear.
+TEST(CutSurface, NoFaceSpansTheCutAndTheWoundHasWalls) {
+  Simulation<double>::Options o;
+  o.forces.gravity = V3(0, 0, -9.81);
+  Simulation<double> sim(held_bar(ForceLaw::continuum), o);
+  const Skin<double> skin = boundary_skin(sim.model());
+  CutSurface<double> surface(sim.model(), skin);
+  EXPECT_EQ(surface.num_hidden(), 0);
+  EXPECT_EQ(surface.num_walls(), 0);
+  auto ws = skin.make_workspace();
+  Positions<double> render(skin.num_vertices(), 3);
+  skin.evaluate(sim.model().positions(), ws, render);
+  const Blade<double> blade = through_bar(0.0175);
+  ASSERT_EQ(sim.cut(blade).pieces, 2);
+  surface.add_cut(blade, render);
+  surface.update(sim.model());
+  EXPECT_GT(surface.num_hidden(), 0);
+  ASSERT_GT(surface.num_walls(), 0);
+  // Walls: faces of intact tetrahedra across from removed ones, one per such face.
+  const auto& m = sim.model();
+  Index expected_walls = 0;
+  std::map<std::array<Index, 3>, std::vector<Index>> at_face;
+  for (Index t = 0; t < m.num_tetrahedra(); ++t)
+    for (int k = 0; k < 4; ++k) {
+      std::array<Index, 3> f{m.tetrahedra()(t, (k + 1) % 4), m.tetrahedra()(t, (k + 2) % 4),
+                             m.tetrahedra()(t, (k + 3) % 4)};
+      std::sort(f.begin(), f.end());
+      at_face[f].push_back(t);
+    }
+  for (const auto& [f, ts] : at_face)
+    if (ts.size() == 2 && m.tetrahedron_intact()[ts[0]] != m.tetrahedron_intact()[ts[1]])
+      ++expected_walls;
+  EXPECT_EQ(surface.num_walls(), expected_walls);
+  for (Index w = 0; w < surface.num_walls(); ++w) {
+    std::array<Index, 3> f{surface.wall_faces()(w, 0), surface.wall_faces()(w, 1),
+                           surface.wall_faces()(w, 2)};
+    std::sort(f.begin(), f.end());
+    ASSERT_EQ(at_face[f].size(), 2u);
+  }
+  // Let the free piece fall away; every visible face still lies within one piece, and none is
+  // stretched across the gap.
+  for (int s = 0; s < 150; ++s) ASSERT_TRUE(sim.step(1e-3).advanced());
+  skin.evaluate(sim.model().positions(), ws, render);
+  TopologyChange pieces;
+  sim.topology().count_pieces(sim.model(), sim.forces().force_links(), pieces);
+  ASSERT_EQ(pieces.pieces, 2);
+  Index visible = 0;
+  for (Index f = 0; f < skin.rest.num_faces(); ++f) {
+    if (surface.hidden(f)) continue;
+    ++visible;
+    std::set<Index> piece;
+    for (int k = 0; k < 3; ++k) {
+      const Index v = skin.rest.faces(f, k);
+      for (int j = 0; j < 4; ++j)
+        if (skin.weights(v, j) != 0) piece.insert(sim.topology().piece(skin.nodes(v, j)));
+    }
+    EXPECT_EQ(piece.size(), 1u) << "face " << f;
+    for (int k = 0; k < 3; ++k)
+      EXPECT_LT((render.row(skin.rest.faces(f, k)) - render.row(skin.rest.faces(f, (k + 1) % 3)))
+                    .norm(),
+                0.0075);
+  }
+  EXPECT_GT(visible, skin.rest.num_faces() / 2);
+  // Walls follow the same rule: each within one piece.
+  for (Index w = 0; w < surface.num_walls(); ++w) {
+    std::set<Index> piece;
+    for (int k = 0; k < 3; ++k) piece.insert(sim.topology().piece(surface.wall_faces()(w, k)));
+    EXPECT_EQ(piece.size(), 1u);
+  }
+  sim.model().restore_topology();
+  surface.restore(sim.model());
+  EXPECT_EQ(surface.num_hidden(), 0);
+  EXPECT_EQ(surface.num_walls(), 0);
+}
+
+// add_cut on its own hides exactly the skin faces with an edge the blade crossed.
+TEST(CutSurface, AddCutHidesExactlyTheFacesTheBladeCrossed) {
+  const SphereModel<double> model = held_bar(ForceLaw::links);
+  const Skin<double> skin = boundary_skin(model);
+  CutSurface<double> surface(model, skin);
+  Blade<double> blade = through_bar(0.0175);
+  blade.end_a.z() = blade.end_b.z() = 0.006;  // a partial cut, from the top
+  const Index hidden = surface.add_cut(blade, skin.rest.vertices);
+  Index expected = 0;
+  for (Index f = 0; f < skin.rest.num_faces(); ++f) {
+    bool crossed = false;
+    for (int k = 0; k < 3; ++k)
+      crossed = crossed || segment_crosses_blade<double>(
+                               skin.rest.vertices.row(skin.rest.faces(f, k)).transpose(),
+                               skin.rest.vertices.row(skin.rest.faces(f, (k + 1) % 3)).transpose(),
+                               blade);
+    EXPECT_EQ(surface.hidden(f), crossed) << f;
+    expected += crossed;
+    if (surface.hidden(f)) {  // written degenerate
+      EXPECT_EQ(surface.skin_faces()(f, 0), surface.skin_faces()(f, 1));
+      EXPECT_EQ(surface.skin_faces()(f, 1), surface.skin_faces()(f, 2));
+    } else {
+      EXPECT_EQ(surface.skin_faces().row(f), skin.rest.faces.row(f));
+    }
+  }
+  EXPECT_GT(expected, 0);
+  EXPECT_EQ(hidden, expected);
+}
 
 TEST(Cut, APartialCutLeavesOnePieceAndABladeThatMissesCutsNothing) {
   Simulation<double> sim(held_bar(ForceLaw::links));

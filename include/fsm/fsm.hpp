@@ -7,6 +7,7 @@
 #include "fsm/collision/grasper.hpp"
 #include "fsm/collision/shapes.hpp"
 #include "fsm/collision/triangle_bvh.hpp"
+#include "fsm/cut_surface.hpp"
 #include "fsm/error.hpp"
 #include "fsm/cutting.hpp"
 #include "fsm/force_model.hpp"
