@@ -143,6 +143,7 @@ void expect_same_material(const Material<double>& a, const Material<double>& b,
   EXPECT_TRUE(same_bits(a.large_strain_modulus, b.large_strain_modulus)) << what;
   EXPECT_TRUE(same_bits(a.switch_strain, b.switch_strain)) << what;
   EXPECT_TRUE(same_bits(a.poisson_ratio, b.poisson_ratio)) << what;
+  EXPECT_TRUE(same_bits(a.tear_strain, b.tear_strain)) << what;
 }
 
 /// Every field of two models: strings and enums equal, arrays bit for bit (the tetrahedra unless
@@ -172,6 +173,7 @@ void expect_identical(const TissueModel<double>& a, const TissueModel<double>& b
   EXPECT_TRUE(same_array(s.damping(), t.damping())) << "damping";
   EXPECT_TRUE(same_array(s.large_stiffness(), t.large_stiffness())) << "large stiffness";
   EXPECT_TRUE(same_array(s.switch_strain(), t.switch_strain())) << "switch strain";
+  EXPECT_TRUE(same_array(s.tear_strain(), t.tear_strain())) << "tear strain";
 
   ASSERT_EQ(a.parts.size(), b.parts.size());
   for (std::size_t k = 0; k < a.parts.size(); ++k) {
@@ -371,12 +373,12 @@ TEST_F(ModelFile, HeaderFollowsTheDocumentedLayout) {
   EXPECT_EQ(get_le(m_bytes, tets.body, 4), num_tets);
   EXPECT_EQ(get_le(m_bytes, tets.body + 4, 4), 4u);
   EXPECT_EQ(tets.length, 8 + num_tets * 4 * 4);
-  // The link section: |L| x 2 i32 rows, then five |L| x 1 f64 arrays.
+  // The link section: |L| x 2 i32 rows, then six |L| x 1 f64 arrays.
   const Section link = section(m_bytes, "LINK");
   const auto num_links = std::uint64_t(m_model.spheres.num_links());
   EXPECT_EQ(get_le(m_bytes, link.body, 4), num_links);
   EXPECT_EQ(get_le(m_bytes, link.body + 4, 4), 2u);
-  EXPECT_EQ(link.length, (8 + num_links * 2 * 4) + 5 * (8 + num_links * 8));
+  EXPECT_EQ(link.length, (8 + num_links * 2 * 4) + 6 * (8 + num_links * 8));
 }
 
 // --- Round trip ----------------------------------------------------------------------------
@@ -513,16 +515,16 @@ TEST_F(ModelFile, ByteFlipsInTheHeaderAreRefused) {
 }
 
 TEST_F(ModelFile, NewerVersionIsRefused) {
-  ASSERT_EQ(model_file_version, 3u);
+  ASSERT_EQ(model_file_version, 4u);
   std::string b = m_bytes;
-  put_le(b, 8, 4, 4);
-  refresh_header(b);  // a well-formed version 4 file as far as version 3 can tell
-  const Error e = error_from([&] { (void)deserialize_model(b, "v4.fsm"); });
-  EXPECT_EQ(e.file(), "v4.fsm");
-  EXPECT_EQ(e.reason(), "model file version 4 is newer than this runtime (3)");
-  // Even a version 4 file too short for a version 3 header: the version is read first.
-  const Error short_e = error_from([&] { (void)deserialize_model(b.substr(0, 12), "v4.fsm"); });
-  EXPECT_EQ(short_e.reason(), "model file version 4 is newer than this runtime (3)");
+  put_le(b, 8, 5, 4);
+  refresh_header(b);  // a well-formed version 5 file as far as version 4 can tell
+  const Error e = error_from([&] { (void)deserialize_model(b, "v5.fsm"); });
+  EXPECT_EQ(e.file(), "v5.fsm");
+  EXPECT_EQ(e.reason(), "model file version 5 is newer than this runtime (4)");
+  // Even a version 5 file too short for a version 4 header: the version is read first.
+  const Error short_e = error_from([&] { (void)deserialize_model(b.substr(0, 12), "v5.fsm"); });
+  EXPECT_EQ(short_e.reason(), "model file version 5 is newer than this runtime (4)");
 }
 
 TEST_F(ModelFile, RequiredFlagsAreRefusedOptionalFlagsIgnored) {
@@ -750,22 +752,27 @@ TEST_F(ModelFile, TetrahedraAreCheckedAgainstTheirPart) {
 
 /// The test model as an older writer wrote it: version 2 has no Poisson's ratio and force law in
 /// REGN; version 1 neither, nor a TETS section or a tetrahedron range in PART.
-std::string as_version(const std::string& v3, const TissueModel<double>& model, int version) {
-  std::string b = v3.substr(0, k_header);
+std::string as_version(const std::string& v4, const TissueModel<double>& model, int version) {
+  std::string b = v4.substr(0, k_header);
   put_le(b, 8, std::uint64_t(version), 4);
-  for (const Section& s : sections(v3)) {
+  for (const Section& s : sections(v4)) {
     if (s.tag == "TETS" && version < 2) continue;
-    std::string body = v3.substr(s.body, s.length);
-    if (s.tag == "REGN") {  // drop the Poisson's ratio (f64) and the law (u8) of each region
+    std::string body = v4.substr(s.body, s.length);
+    if (s.tag == "REGN") {
+      // Each region: name, five f64, then Poisson's ratio (f64, version 3), the tear strain
+      // (f64, version 4) and the law (u8, version 3).
       std::string out = body.substr(0, 4);
       std::size_t at = 4;
       for (std::uint64_t k = 0; k < get_le(body, 0, 4); ++k) {
         const std::size_t len = 4 + get_le(body, at, 4) + 5 * 8;
         out += body.substr(at, len);
-        at += len + 8 + 1;
+        if (version == 3) out += body.substr(at + len, 8) + body.substr(at + len + 16, 1);
+        at += len + 8 + 8 + 1;
       }
       body = out;
     }
+    if (s.tag == "LINK")  // drop the tear strain matrix (version 4) at the end
+      body.resize(body.size() - 8 - 8 * std::size_t(model.spheres.num_links()));
     if (s.tag == "PART" && version < 2) {  // drop the two i32 at the end of each part
       std::string out = body.substr(0, 4);
       std::size_t at = 4;
@@ -784,13 +791,46 @@ std::string as_version(const std::string& v3, const TissueModel<double>& model, 
   return b;
 }
 
+TEST_F(ModelFile, Version3FilesStillLoad) {
+  // The test model with tear strains, written as version 3: everything but them comes back.
+  TissueModel<double> model = m_model;
+  Material<double> m = model.spheres.region(0).material;
+  m.tear_strain = 0.4;
+  model.spheres.set_region_material(0, m);
+  model.spheres.tear_strain()[0] = 0.25;
+  const std::string v4 = serialize_model(model);
+  const TissueModel<double> back = deserialize_model(v4, "v4.fsm");
+  EXPECT_EQ(back.spheres.region(0).material.tear_strain, 0.4);
+  EXPECT_EQ(back.spheres.tear_strain()[0], 0.25);
+  EXPECT_TRUE(std::isinf(back.spheres.tear_strain()[1]));
+  const TissueModel<double> v3 = deserialize_model(as_version(v4, model, 3), "v3.fsm");
+  expect_identical(m_model, v3, false);
+  EXPECT_TRUE(std::isinf(v3.spheres.region(0).material.tear_strain));
+  EXPECT_TRUE(std::isinf(v3.spheres.tear_strain()[0]));
+  // A tear strain that is not positive is refused, naming the link.
+  TissueModel<double> bad = model;
+  std::string bytes = serialize_model(bad);
+  const Section links = [&] {
+    for (const Section& s : sections(bytes))
+      if (s.tag == "LINK") return s;
+    return Section{};
+  }();
+  const std::size_t first = links.body + links.length - 8 * std::size_t(model.spheres.num_links());
+  put_le(bytes, first, 0x7ff8000000000000ull, 8);  // NaN
+  refresh_header(bytes);
+  const Error e = error_from([&] { (void)deserialize_model(bytes, "nan.fsm"); });
+  EXPECT_EQ(e.file(), "nan.fsm");
+  EXPECT_EQ(e.part(), "link 0");
+  EXPECT_NE(e.reason().find("tear strain"), std::string::npos) << e.what();
+}
+
 TEST_F(ModelFile, Version2FilesStillLoad) {
   // The test model, written as version 2: everything comes back, every region with the link
   // law and the default Poisson's ratio.
   TissueModel<double> model = m_model;
   model.spheres.set_region_law(0, ForceLaw::continuum);
-  const std::string v3 = serialize_model(model);
-  const TissueModel<double> v2 = deserialize_model(as_version(v3, model, 2), "v2.fsm");
+  const std::string v4 = serialize_model(model);
+  const TissueModel<double> v2 = deserialize_model(as_version(v4, model, 2), "v2.fsm");
   EXPECT_EQ(v2.spheres.num_tetrahedra(), model.spheres.num_tetrahedra());
   TissueModel<double> want = model;
   want.spheres.set_region_law(0, ForceLaw::links);
@@ -821,7 +861,7 @@ TEST_F(ModelFile, Version1FilesStillLoad) {
     EXPECT_EQ(r.material.poisson_ratio, Material<double>{}.poisson_ratio) << r.name;
   }
   // A file the version 1 builder wrote (tests/data: ovary_left + ligament_left of the bundled
-  // uterus, fsm-build at commit d43657f): it loads, has no tetrahedra, and saves as version 3.
+  // uterus, fsm-build at commit d43657f): it loads, has no tetrahedra, and saves as version 4.
   const std::string path = std::string(FSM_TEST_DATA_DIR) + "/model_v1_ovary_ligament.fsm";
   const std::string old = read_bytes(path);
   ASSERT_GT(old.size(), k_header);
@@ -839,7 +879,7 @@ TEST_F(ModelFile, Version1FilesStillLoad) {
   EXPECT_EQ(m.spheres.num_tetrahedra(), 0);
   EXPECT_EQ(m.parts[0].num_tetrahedra, 0);
   const std::string again = serialize_model(m);
-  EXPECT_EQ(get_le(again, 8, 4), 3u);
+  EXPECT_EQ(get_le(again, 8, 4), model_file_version);
   expect_identical(m, deserialize_model(again));
 }
 

@@ -193,7 +193,7 @@ void draw_scene(const SceneFrame& frame, const OrbitCamera& camera, int width, i
   if (frame.show_surface && frame.model != nullptr && frame.model->skin.num_vertices() > 0) {
     const auto& skin = frame.model->skin;
     const Positions<double>& v = frame.surface != nullptr ? *frame.surface : skin.rest.vertices;
-    const FaceArray& faces = skin.rest.faces;
+    const FaceArray& faces = frame.faces != nullptr ? *frame.faces : skin.rest.faces;
     Positions<double> n(v.rows(), 3);
     compute_vertex_normals<double>(v, faces, n);
     for (std::size_t p = 0; p < frame.model->parts.size(); ++p) {
@@ -204,13 +204,27 @@ void draw_scene(const SceneFrame& frame, const OrbitCamera& camera, int width, i
       glColor3f(c.x(), c.y(), c.z());
       glBegin(GL_TRIANGLES);
       for (Index f = surf.first_face; f < surf.first_face + surf.num_faces; ++f)
-        for (int k = 0; k < 3; ++k) {
+        for (int k = 0; k < 3 && faces(f, 0) != faces(f, 1); ++k) {
           const Index i = faces(f, k);
           glNormal3d(n(i, 0), n(i, 1), n(i, 2));
           glVertex3d(v(i, 0), v(i, 1), v(i, 2));
         }
       glEnd();
     }
+  }
+  if (frame.walls != nullptr && frame.spheres != nullptr && frame.num_walls > 0) {
+    const Positions<double>& x = *frame.spheres;
+    glColor3f(0.78f, 0.16f, 0.18f);  // the wound
+    glBegin(GL_TRIANGLES);
+    for (Index w = 0; w < frame.num_walls; ++w) {
+      const Vector3<double> a = x.row((*frame.walls)(w, 0)).transpose();
+      const Vector3<double> b = x.row((*frame.walls)(w, 1)).transpose();
+      const Vector3<double> c = x.row((*frame.walls)(w, 2)).transpose();
+      const Vector3<double> nn = (b - a).cross(c - a).normalized();
+      glNormal3d(nn.x(), nn.y(), nn.z());
+      for (const Vector3<double>* p : {&a, &b, &c}) glVertex3d(p->x(), p->y(), p->z());
+    }
+    glEnd();
   }
   if (frame.spheres != nullptr && frame.show_links && frame.model != nullptr &&
       frame.model->spheres.num_nodes() == frame.spheres->rows()) {
@@ -226,7 +240,7 @@ void draw_scene(const SceneFrame& frame, const OrbitCamera& camera, int width, i
     glEnd();
     glEnable(GL_LIGHTING);
   }
-  if (frame.spheres != nullptr) {
+  if (frame.spheres != nullptr && frame.show_spheres) {
     glDisable(GL_LIGHTING);
     glPointSize(3.0f);
     glColor3f(1, 1, 1);

@@ -22,8 +22,16 @@ struct OrbitCamera {
 struct SceneFrame {
   const TissueModel<double>* model{nullptr};
   const Positions<double>* surface{nullptr};  ///< skinned vertices (the skin's |S| x 3), or rest
-  const Positions<double>* spheres{nullptr};  ///< optional: draw the spheres as points
+  const Positions<double>* spheres{nullptr};  ///< optional: the spheres (drawn as points)
+  bool show_spheres{true};                    ///< with `spheres`: draw them as points
   bool show_surface{true};                    ///< draw the render surface
+  /// Optional: the skin's faces to draw instead of its rest faces (CutSurface::skin_faces(),
+  /// degenerate faces skipped).
+  const FaceArray* faces{nullptr};
+  /// Optional, with `spheres`: the first `num_walls` rows are wound walls over the spheres
+  /// (CutSurface::wall_faces()), drawn in the wound's colour.
+  const FaceArray* walls{nullptr};
+  Index num_walls{0};
   bool show_links{false};  ///< with `spheres`: draw the model's links between them as lines
   bool has_instrument{false};
   collision::Pose<double> instrument;

@@ -111,8 +111,8 @@ struct TopologyChange {
 /// @brief Cuts and tears a SphereModel's links and tetrahedra in the real-time step.
 ///
 /// refresh() (allocates) builds which tetrahedra share each link, the links' tear strains (the
-/// smaller of the two nodes' regions' Material::tear_strain; writable per link afterwards, e.g.
-/// for an attachment) and room for the event lists; cut() and tear() then allocate nothing, never
+/// smallest of the link's own SphereModel::tear_strain() and its two nodes' regions'
+/// Material::tear_strain; writable per link afterwards) and room for the event lists; cut() and tear() then allocate nothing, never
 /// throw, and are deterministic (links and tetrahedra are visited in index order).
 template <typename Scalar>
 class TopologyEditor {
@@ -130,8 +130,9 @@ class TopologyEditor {
     const auto region = model.node_regions();
     m_tear.resize(L);
     for (Index l = 0; l < L; ++l)
-      m_tear[l] = std::min(model.region(region[links(l, 0)]).material.tear_strain,
-                           model.region(region[links(l, 1)]).material.tear_strain);
+      m_tear[l] = std::min({model.tear_strain()[l],
+                            model.region(region[links(l, 0)]).material.tear_strain,
+                            model.region(region[links(l, 1)]).material.tear_strain});
     // The tetrahedra at each link (CSR): match the tetrahedra's edges to the links.
     std::vector<std::pair<std::uint64_t, Index>> keys;  // (edge key, tetrahedron)
     keys.reserve(6 * std::size_t(T));

@@ -26,7 +26,7 @@ namespace fsm {
 /// `TETS`, and each part's range of them); a version 1 file loads with none. The version goes up
 /// when an older reader would misread a file; additions an older reader may ignore go into new
 /// sections at the same version.
-inline constexpr std::uint32_t model_file_version = 3;
+inline constexpr std::uint32_t model_file_version = 4;
 
 /// @brief Writes `model` to the file `path` (created or overwritten) in the current format.
 ///

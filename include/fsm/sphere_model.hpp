@@ -153,6 +153,11 @@ class SphereModel {
   }
   ScalarMap switch_strain() noexcept { return {m_switch_strain.data(), num_links()}; }
   ConstScalarMap switch_strain() const noexcept { return {m_switch_strain.data(), num_links()}; }
+  /// The link's own tear strain (l - l0) / l0: it breaks past the smallest of this and its two
+  /// nodes' regions' Material::tear_strain (an attachment can be weaker than both parts).
+  /// > 0; infinity (the default) = only the materials decide. Simulation::refresh() reads it.
+  ScalarMap tear_strain() noexcept { return {m_tear_strain.data(), num_links()}; }
+  ConstScalarMap tear_strain() const noexcept { return {m_tear_strain.data(), num_links()}; }
   /// 1 for a link that holds, 0 for one a cut or a tear has broken (docs/physics.md section 12).
   /// A broken link carries no force and is kept (indices stay valid); after editing this in place
   /// call Simulation::refresh() or ForceModel::update_topology().
@@ -229,6 +234,7 @@ class SphereModel {
   std::vector<std::uint8_t> m_fixed;
   std::vector<Index> m_link;  // 2 per link
   std::vector<Scalar> m_rest_length, m_stiffness, m_damping, m_large_stiffness, m_switch_strain;
+  std::vector<Scalar> m_tear_strain;
   std::vector<Index> m_tetrahedron;  // 4 per tetrahedron
   std::vector<std::uint8_t> m_link_intact, m_tetrahedron_intact;
 };

@@ -144,5 +144,7 @@ void define_haptic_device(py::module_& m);
 void define_scripted_device(py::module_& m);
 void define_servo_loop(py::module_& m);
 void define_volume_term(py::module_& m);
+void define_cutting(py::module_& m);
+void define_grasper(py::module_& m);
 
 }  // namespace fsm::python

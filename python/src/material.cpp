@@ -10,17 +10,20 @@ void define_material(py::module_& m) {
 
 All values SI. A bilinear material switches from youngs_modulus to large_strain_modulus at
 |strain| = switch_strain (large_strain_modulus = 0 means linear). poisson_ratio is used by the
-continuum law only (the link network has 1/4 whatever it says).)")
+continuum law only (the link network has 1/4 whatever it says). tear_strain: the strain
+(l - l0) / l0 past which the tissue tears (a link breaks, and in a continuum region the tetrahedra
+that share it); infinity = never.)")
       .def(py::init([](Scalar density, Scalar youngs_modulus, Scalar viscosity,
-                       Scalar large_strain_modulus, Scalar switch_strain, Scalar poisson_ratio) {
-             M mat{density,       youngs_modulus, viscosity, large_strain_modulus,
-                   switch_strain, poisson_ratio};
+                       Scalar large_strain_modulus, Scalar switch_strain, Scalar poisson_ratio,
+                       Scalar tear_strain) {
+             M mat{density,       youngs_modulus, viscosity,  large_strain_modulus,
+                   switch_strain, poisson_ratio,  tear_strain};
              mat.validate("Material");
              return mat;
            }),
            py::arg("density") = 1000.0, py::arg("youngs_modulus"), py::arg("viscosity") = 0.0,
            py::arg("large_strain_modulus") = 0.0, py::arg("switch_strain") = 0.0,
-           py::arg("poisson_ratio") = M{}.poisson_ratio,
+           py::arg("poisson_ratio") = M{}.poisson_ratio, py::arg("tear_strain") = M{}.tear_strain,
            R"(density in kg/m^3, youngs_modulus in Pa, viscosity in Pa s; raises fsm.Error for
 out-of-range values.)")
       .def_readwrite("density", &M::density, "kg/m^3")
@@ -29,6 +32,7 @@ out-of-range values.)")
       .def_readwrite("large_strain_modulus", &M::large_strain_modulus, "Pa (0: linear)")
       .def_readwrite("switch_strain", &M::switch_strain, "|strain| of the modulus switch")
       .def_readwrite("poisson_ratio", &M::poisson_ratio, "nu in (-1, 0.5), of the continuum law")
+      .def_readwrite("tear_strain", &M::tear_strain, "strain past which it tears (inf: never)")
       .def_property_readonly("shear_modulus", &M::shear_modulus, "mu = E / (2 (1 + nu)) in Pa")
       .def_property_readonly("bulk_modulus", &M::bulk_modulus, "K = E / (3 (1 - 2 nu)) in Pa")
       .def_property_readonly("is_bilinear", &M::is_bilinear,

@@ -32,6 +32,7 @@ of memory inside the library is an fsm.Error too ("out of memory: ...").)";
     }
   });
   fsm::python::define_material(m);
+  fsm::python::define_cutting(m);
   fsm::python::define_sphere_model(m);
   fsm::python::define_tetrahedral_mesh(m);
   fsm::python::define_integrators(m);
@@ -39,6 +40,7 @@ of memory inside the library is an fsm.Error too ("out of memory: ...").)";
   fsm::python::define_tissue_model(m);
   fsm::python::define_shapes(m);
   fsm::python::define_contact(m);
+  fsm::python::define_grasper(m);
   fsm::python::define_triangle_bvh(m);
   fsm::python::define_haptic_device(m);
   fsm::python::define_scripted_device(m);

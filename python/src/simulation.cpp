@@ -40,6 +40,7 @@ void define_simulation(py::module_& m) {
                     "continuum elements with J <= 0 after the step (0 without the law)")
       .def_readonly("softened_contacts", &R::softened_contacts,
                     "penalty contacts capped to an explicit step's limit (0 with implicit Euler)")
+      .def_readonly("torn", &R::torn, "TopologyChange: what the step tore")
       .def_property_readonly("advanced", &R::advanced,
                              "True when the state moved on (status 'ok' or 'recovered')")
       .def("__repr__", [](const R& r) {
@@ -146,6 +147,41 @@ option.)")
           "law's elements (elastic and viscous), drag and the penalty contacts the force model "
           "holds; not gravity or external forces. On a held (fixed) node, what the tissue pushes "
           "it with: summed over a tool's held nodes, the tool's reaction.")
+      .def("cut", &Sim::cut, py::arg("blade"), py::call_guard<py::gil_scoped_release>(),
+           "Cuts the links and tetrahedra the Blade swept through at the current positions; "
+           "returns a TopologyChange (`rejected` for an invalid blade: nothing changed).")
+      .def_property_readonly(
+          "broken_links",
+          [](const Sim& sim) { return sim.topology().broken_links(); },
+          "Links broken by the last cut or step's tear (a list of indices).")
+      .def_property_readonly(
+          "removed_tetrahedra",
+          [](const Sim& sim) { return sim.topology().removed_tetrahedra(); },
+          "Tetrahedra removed by the last cut or step's tear (a list of indices).")
+      .def_property(
+          "tear_strains",
+          [](py::object self) {
+            Sim& sim = self.cast<Sim&>();
+            auto t = sim.topology().tear_strains();
+            return view<Scalar>(t.data(), py::ssize_t(t.rows()), 0, self, true);
+          },
+          [](Sim& sim, const py::array_t<Scalar, py::array::c_style | py::array::forcecast>& v) {
+            auto t = sim.topology().tear_strains();
+            if (v.ndim() != 1 || v.shape(0) != t.rows())
+              throw Error("", "tear_strains",
+                          "must have " + std::to_string(t.rows()) + " entries, one per link");
+            const ScalarArray<Scalar> old = t;
+            std::copy(v.data(), v.data() + t.rows(), t.data());
+            try {
+              sim.topology().refresh_tearing();
+            } catch (...) {
+              t = old;
+              throw;
+            }
+          },
+          "|L| effective tear strain per link (the smallest of the link's own and its materials'; "
+          "inf = never), a read-only view; assign a whole array to change it until the next "
+          "refresh() (fsm.Error for an entry that is not positive).")
       .def("set_fixed", &Sim::set_fixed, py::arg("node"), py::arg("fixed") = true,
            "Fixes (or frees) a node; a fixed node's velocity is zeroed and it moves only when its "
            "position is written.")

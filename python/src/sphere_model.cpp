@@ -169,6 +169,31 @@ writing masses, fixed flags or link constants in place, call Simulation.refresh(
       c, "large_stiffness", [](Model& mm) { return mm.large_stiffness(); }, "|L|, N/m");
   column_property<Scalar>(
       c, "switch_strain", [](Model& mm) { return mm.switch_strain(); }, "|L|, inf = linear");
+  column_property<Scalar>(
+      c, "tear_strain", [](Model& mm) { return mm.tear_strain(); },
+      "|L|, each link's own tear strain (it tears past the smallest of this and its regions' "
+      "materials'); inf = the materials decide. Simulation.refresh() after editing it.");
+  c.def_property_readonly(
+      "link_intact",
+      [](py::object self) {
+        Model& mm = self.cast<Model&>();
+        return view<std::uint8_t>(mm.link_intact().data(), mm.num_links(), 0, self, true);
+      },
+      "|L|, 1 = holds, 0 = cut or torn (a read-only view)");
+  c.def_property_readonly(
+      "tetrahedron_intact",
+      [](py::object self) {
+        Model& mm = self.cast<Model&>();
+        return view<std::uint8_t>(mm.tetrahedron_intact().data(), mm.num_tetrahedra(), 0, self,
+                                  true);
+      },
+      "|T|, 1 = holds, 0 = cut or torn (a read-only view)");
+  c.def_property_readonly("num_broken_links", &Model::num_broken_links,
+                          "links cut or torn so far");
+  c.def_property_readonly("num_removed_tetrahedra", &Model::num_removed_tetrahedra,
+                          "tetrahedra cut or torn so far");
+  c.def("restore_topology", &Model::restore_topology,
+        "Makes every link and tetrahedron whole again (Simulation.refresh() after).");
   c.def_property_readonly(
       "links",
       [](py::object self) {

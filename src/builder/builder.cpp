@@ -512,7 +512,8 @@ void attach_parts(Build& b) {
         law.stiffness *= att.stiffness_scale;
         law.damping *= att.stiffness_scale;
         law.large_stiffness *= att.stiffness_scale;
-        spheres.add_link(key.first, key.second, law);
+        const Index l = spheres.add_link(key.first, key.second, law);
+        spheres.tear_strain()[l] = att.tear_strain;
         ++added;
       }
     };

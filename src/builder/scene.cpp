@@ -106,7 +106,7 @@ class Reader {
 Material<double> read_material(const Reader& r, const json& j, const std::string& where) {
   r.keys(j,
          {"density", "youngs_modulus", "viscosity", "large_strain_modulus", "switch_strain",
-          "poisson_ratio"},
+          "poisson_ratio", "tear_strain"},
          where + " material");
   Material<double> m;
   m.density = r.number(j, "density", where);
@@ -115,6 +115,7 @@ Material<double> read_material(const Reader& r, const json& j, const std::string
   m.large_strain_modulus = r.number_or(j, "large_strain_modulus", 0.0, where);
   m.switch_strain = r.number_or(j, "switch_strain", 0.0, where);
   m.poisson_ratio = r.number_or(j, "poisson_ratio", m.poisson_ratio, where);
+  m.tear_strain = r.number_or(j, "tear_strain", m.tear_strain, where);
   try {
     m.validate(where);
   } catch (const Error& e) {
@@ -322,7 +323,7 @@ void read_attachments(const Reader& r, const json& list, double units,
   int k = 0;
   for (const json& a : list) {
     const std::string where = "attachment " + std::to_string(k++);
-    r.keys(a, {"parts", "tolerance", "stiffness_scale"}, where);
+    r.keys(a, {"parts", "tolerance", "stiffness_scale", "tear_strain"}, where);
     if (!a.contains("parts") || !a["parts"].is_array() || a["parts"].size() != 2 ||
         !a["parts"][0].is_string() || !a["parts"][1].is_string())
       r.fail(where, "'parts' must be two part names");
@@ -336,6 +337,9 @@ void read_attachments(const Reader& r, const json& list, double units,
     spec.stiffness_scale = r.number_or(a, "stiffness_scale", 1.0, where);
     if (!(spec.tolerance >= 0) || !(spec.stiffness_scale > 0))
       r.fail(where, "'tolerance' must be >= 0 and 'stiffness_scale' > 0");
+    spec.tear_strain = r.number_or(a, "tear_strain", spec.tear_strain, where);
+    if (!(spec.tear_strain > 0))
+      r.fail(where, "'tear_strain' must be positive (leave it out: the parts' materials decide)");
     scene.attachments.push_back(spec);
   }
 }

@@ -307,6 +307,7 @@ struct StoredNodes {
 struct StoredLinks {
   LinkArray links;
   ScalarArray<double> rest_lengths, stiffness, damping, large_stiffness, switch_strain;
+  ScalarArray<double> tear_strain;  // version 4; empty before
 };
 
 void write_material(Writer& w, const Material<double>& m) {
@@ -316,6 +317,7 @@ void write_material(Writer& w, const Material<double>& m) {
   w.f64(m.large_strain_modulus);
   w.f64(m.switch_strain);
   w.f64(m.poisson_ratio);  // version 3
+  w.f64(m.tear_strain);    // version 4
 }
 
 Material<double> read_material(Reader& r, std::uint32_t version) {
@@ -326,6 +328,7 @@ Material<double> read_material(Reader& r, std::uint32_t version) {
   m.large_strain_modulus = r.f64("large_strain_modulus");
   m.switch_strain = r.f64("switch_strain");
   if (version >= 3) m.poisson_ratio = r.f64("poisson_ratio");
+  if (version >= 4) m.tear_strain = r.f64("tear_strain");
   return m;
 }
 
@@ -363,6 +366,7 @@ void write_sections(Writer& w, const TissueModel<double>& model) {
   w.matrix(s.damping(), "damping");
   w.matrix(s.large_stiffness(), "large stiffness");
   w.matrix(s.switch_strain(), "switch strain");
+  w.matrix(s.tear_strain(), "tear strain");  // version 4
   w.end_section(at);
 
   at = w.begin_section(k_tag_parts);
@@ -458,7 +462,7 @@ StoredNodes read_nodes(Reader& r) {
   return n;
 }
 
-StoredLinks read_links(Reader& r) {
+StoredLinks read_links(Reader& r, std::uint32_t version) {
   StoredLinks l;
   r.matrix(l.links, "links");
   r.matrix(l.rest_lengths, "rest lengths");
@@ -466,13 +470,17 @@ StoredLinks read_links(Reader& r) {
   r.matrix(l.damping, "damping");
   r.matrix(l.large_stiffness, "large stiffness");
   r.matrix(l.switch_strain, "switch strain");
+  if (version >= 4) r.matrix(l.tear_strain, "tear strain");
   const Eigen::Index count = l.links.rows();
+  if (version < 4)
+    l.tear_strain.setConstant(count, std::numeric_limits<double>::infinity());
   const std::pair<const char*, Eigen::Index> rows[] = {
       {"rest lengths", l.rest_lengths.rows()},
       {"stiffness", l.stiffness.rows()},
       {"damping", l.damping.rows()},
       {"large stiffness", l.large_stiffness.rows()},
-      {"switch strain", l.switch_strain.rows()}};
+      {"switch strain", l.switch_strain.rows()},
+      {"tear strain", l.tear_strain.rows()}};
   for (const auto& [what, got] : rows)
     if (got != count)
       throw r.malformed(std::string(what) + " has " + std::to_string(got) + " rows, links " +
@@ -559,6 +567,13 @@ SphereModel<double> rebuild_spheres(const std::vector<Region<double>>& regions,
     s.add_link(l.links(k, 0), l.links(k, 1),
                VoigtLink<double>{l.rest_lengths[k], l.stiffness[k], l.damping[k],
                                  l.large_stiffness[k], l.switch_strain[k]});
+  for (Index k = 0; k < num_links; ++k) {
+    if (!(l.tear_strain[k] > 0))  // NaN too
+      throw Error("", "link " + std::to_string(k),
+                  "tear strain " + std::to_string(l.tear_strain[k]) +
+                      " must be positive (infinity = never tears)");
+    s.tear_strain()[k] = l.tear_strain[k];
+  }
   for (Index t = 0; t < Index(tets.rows()); ++t)
     s.add_tetrahedron(tets(t, 0), tets(t, 1), tets(t, 2), tets(t, 3));
   return s;
@@ -650,7 +665,7 @@ TissueModel<double> parse(std::string_view bytes, const std::string& file) {
   section(k_tag_meta, [&](Reader& r) { read_meta(r, model); });
   section(k_tag_regions, [&](Reader& r) { regions = read_regions(r, version); });
   section(k_tag_nodes, [&](Reader& r) { nodes = read_nodes(r); });
-  section(k_tag_links, [&](Reader& r) { links = read_links(r); });
+  section(k_tag_links, [&](Reader& r) { links = read_links(r, version); });
   section(k_tag_parts, [&](Reader& r) { model.parts = read_parts(r, version); });
   section(k_tag_attachments, [&](Reader& r) { read_attachments(r, model); });
   section(k_tag_skin, [&](Reader& r) { read_skin(r, model.skin); });

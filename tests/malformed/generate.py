@@ -240,7 +240,7 @@ def models():
     write_model("magic_wrong.fsm", b"PK\x03\x04" + base[4:], "not an fsm model file")
     write_model("version_zero.fsm", refresh(base[:8] + struct.pack("<I", 0) + base[12:]),
                 "format version 0 does not exist")
-    write_model("version_four.fsm", refresh(base[:8] + struct.pack("<I", 4) + base[12:]),
+    write_model("version_five.fsm", refresh(base[:8] + struct.pack("<I", 5) + base[12:]),
                 "is newer than this runtime")
     write_model("version_2_32_minus_1.fsm",
                 refresh(base[:8] + struct.pack("<I", 2**32 - 1) + base[12:]),

@@ -5,6 +5,7 @@
 
 #include <memory>
 #include <optional>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -69,6 +70,9 @@ struct AttachmentSpec {
   std::string a, b;
   double tolerance{0};        ///< Sphere surfaces closer than this are linked (m).
   double stiffness_scale{1};  ///< Multiplies the link stiffness rule (docs/builder.md).
+  /// The attachment's links tear past this strain (or their parts' materials' if smaller);
+  /// infinity (absent from the scene) = the materials decide.
+  double tear_strain{std::numeric_limits<double>::infinity()};
 };
 
 /// @brief Nodes of a part held fixed.

@@ -121,6 +121,24 @@ struct ServoSnapshot {
   bool advanced{true};  ///< false: this step diverged and was rolled back
 };
 
+/// @brief What an instrument does besides pushing the tissue (cut it, grasp it): the servo loop
+/// calls it inside every simulation step with the instrument's pose, and adds its wrench to what
+/// the proxy and the device feel. Both calls run on the simulation's thread and must not
+/// allocate, throw or wait on a lock (docs/haptics.md).
+class InstrumentAction {
+ public:
+  virtual ~InstrumentAction() = default;
+  /// After the contacts are computed and before the step: the instrument's pose and velocity
+  /// (simulation frame, m/s) and the servo time (s). Cut here (Simulation::cut), or update a
+  /// collision::Grasper.
+  virtual void before_step(Simulation<double>& sim, const collision::Pose<double>& pose,
+                           const Vector3<double>& velocity, double t) noexcept = 0;
+  /// After the step: the force (N) the action puts on the instrument, with its stiffness and
+  /// damping (the proxy takes them implicitly, as the contacts').
+  [[nodiscard]] virtual collision::Wrench<double> wrench(
+      const Simulation<double>& sim) const noexcept = 0;
+};
+
 /// @brief Couples a HapticDevice to a Simulation at the servo rate.
 ///
 /// Each device tick: read the device at the nominal tick time, map it into the simulation frame,
@@ -177,6 +195,9 @@ class ServoLoop {
   /// @brief A function called inside every simulation step with the servo time (s): for tests
   /// (inject a stall) and for scripted loads. Set before running.
   void set_step_hook(std::function<void(double)> hook) { m_hook = std::move(hook); }
+  /// @brief The instrument's action (a blade, a grasper), or nullptr; not owned, must outlive the
+  /// runs. Set before running.
+  void set_action(InstrumentAction* action) noexcept { m_action = action; }
 
  private:
   using Clock = std::chrono::steady_clock;
@@ -230,6 +251,7 @@ class ServoLoop {
   double m_period;
   double m_max_force{0};
   std::function<void(double)> m_hook;
+  InstrumentAction* m_action{nullptr};
 
   detail::TripleBuffer<DeviceSample> m_device_buffer;
   detail::TripleBuffer<ProxySample> m_proxy_buffer;

@@ -129,6 +129,7 @@ Index SphereModel<Scalar>::add_link(Index i, Index j, const VoigtLink<Scalar>& l
   m_damping.push_back(law.damping);
   m_large_stiffness.push_back(law.large_stiffness);
   m_switch_strain.push_back(law.switch_strain);
+  m_tear_strain.push_back(std::numeric_limits<Scalar>::infinity());
   try {
     check_link(l);
   } catch (...) {
@@ -138,6 +139,7 @@ Index SphereModel<Scalar>::add_link(Index i, Index j, const VoigtLink<Scalar>& l
     m_damping.pop_back();
     m_large_stiffness.pop_back();
     m_switch_strain.pop_back();
+    m_tear_strain.pop_back();
     throw;
   }
   m_link_intact.push_back(1);
@@ -184,6 +186,7 @@ void SphereModel<Scalar>::reserve(Index nodes, Index links) {
   m_large_stiffness.reserve(l);
   m_switch_strain.reserve(l);
   m_link_intact.reserve(l);
+  m_tear_strain.reserve(l);
 }
 
 template <typename Scalar>
@@ -346,6 +349,9 @@ void SphereModel<Scalar>::check_link(Index l) const {
     fail("large-strain stiffness " + num(m_large_stiffness[k]) + " N/m must be positive");
   if (std::isnan(m_switch_strain[k]) || !(m_switch_strain[k] > 0))
     fail("switch strain " + num(m_switch_strain[k]) + " must be positive (infinity = linear)");
+  if (k < m_tear_strain.size() && !(m_tear_strain[k] > 0))
+    fail("tear strain " + num(m_tear_strain[k]) + " must be positive (infinity = never tears)");
+  if (k < m_link_intact.size() && m_link_intact[k] > 1) fail("intact flag must be 0 or 1");
 }
 
 template <typename Scalar>
@@ -413,6 +419,7 @@ SphereModel<Other> SphereModel<Scalar>::cast() const {
   out.m_switch_strain = conv(m_switch_strain);
   out.m_tetrahedron = m_tetrahedron;
   out.m_link_intact = m_link_intact;
+  out.m_tear_strain = conv(m_tear_strain);
   out.m_tetrahedron_intact = m_tetrahedron_intact;
   return out;
 }

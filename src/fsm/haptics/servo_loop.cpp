@@ -273,6 +273,12 @@ ServoLoop::TissueSample ServoLoop::tissue_sample() const noexcept {
   t.force = w.force;
   t.stiffness = w.stiffness;
   t.damping = w.damping;
+  if (m_action != nullptr) {
+    const collision::Wrench<double> a = m_action->wrench(m_sim);
+    t.force += a.force;
+    t.stiffness += a.stiffness;
+    t.damping += a.damping;
+  }
   t.position = m_proxy.position;
   t.velocity = m_proxy.velocity;
   return t;
@@ -333,6 +339,7 @@ void ServoLoop::physics_step(double t) noexcept {
   // The contacts at the proxy's new pose go into the step (implicitly with implicit Euler); the
   // wrench the proxy feels next tick is their force at the end of the step.
   m_contacts.compute(m_sim.model(), m_sim.forces());
+  if (m_action != nullptr) m_action->before_step(m_sim, ins.pose, m_proxy.velocity, t);
   const StepReport report = m_sim.step(m_period);
   m_contacts.collect(m_sim.forces());
   if (!report.advanced()) {
@@ -357,6 +364,7 @@ void ServoLoop::physics_step(double t) noexcept {
   s.device_position = d.position;
   s.force = d.force;
   s.tissue_force = m_contacts.wrench(m_instrument).force;
+  if (m_action != nullptr) s.tissue_force += m_action->wrench(m_sim).force;
   s.step_time = std::chrono::duration<double>(Clock::now() - start).count();
   s.advanced = report.advanced();
   m_snapshots.publish();
