@@ -47,7 +47,7 @@ TEST_P(Grasp, HoldsWhatItClosesOnFollowsTheJawsAndReleases) {
   EXPECT_EQ(sim.forces().num_held(), e.grasped);
   for (const Index i : grasper.held()) {
     const V3 local = jaws_at(0).to_local(sim.model().positions().row(i).transpose());
-    EXPECT_TRUE(grasper.between_jaws(local, sim.model().radii()[i], 0.6)) << i;
+    EXPECT_TRUE(grasper.between_jaws(local, 0.6)) << i;
   }
   // Lift the jaws 3 mm over 0.3 s, then hold still for 0.5 s.
   const double speed = 0.01;

@@ -32,6 +32,7 @@
 #include "fsm_support/probe.hpp"
 #include "fsm_support/stress.hpp"
 #include "gl_scene.hpp"
+#include "myomectomy.hpp"
 #include "offscreen.hpp"
 
 using namespace fsm;
@@ -51,6 +52,8 @@ struct Args {
   std::string threading{"lockstep"};
   std::string export_dir;  // ParaView time series; empty: none
   double export_hz{10};
+  std::string scenario{"probing"};
+  double capsule_tear{0.2};
 };
 
 // Parses the command line (CLI11): returns the exit status when the program should stop there
@@ -87,6 +90,15 @@ int parse(int argc, char** argv, Args& a) {
                  "tick runs on its own thread against a local contact model and the simulation "
                  "on another (docs/haptics.md)")
       ->check(CLI::IsMember({"lockstep", "decoupled"}))
+      ->capture_default_str();
+  app.add_option("--scenario", a.scenario,
+                 "probing: the default session; myomectomy: incise around the fibroid, grasp it and "
+                 "pull until it is free (the bundled uterus; docs/demo.md)")
+      ->check(CLI::IsMember({"probing", "myomectomy"}))
+      ->capture_default_str();
+  app.add_option("--capsule-tear", a.capsule_tear,
+                 "myomectomy: the strain past which the fibroid's capsule tears")
+      ->check(CLI::Range(0.01, 10.0))
       ->capture_default_str();
   app.add_option("--export", a.export_dir,
                  "write the session as a ParaView time series (DIR/fsm.pvd: spheres, links, "
@@ -134,6 +146,16 @@ int main(int argc, char** argv) {
     const std::string& source = opened.source;
     const bool built = opened.built;
     const double build_s = opened.build_seconds;
+    if (args.scenario == "myomectomy") {
+      examples::ScenarioOptions so;
+      so.out = args.out;
+      so.json = args.json;
+      so.render = args.render;
+      so.stress = args.stress;
+      so.realtime = args.realtime;
+      so.capsule_tear = args.capsule_tear;
+      return examples::run_myomectomy(model, so);
+    }
 
     // ---- Table-1-like report.
     const std::pair<const char*, int> paper[] = {

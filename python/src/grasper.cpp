@@ -12,12 +12,12 @@ void define_grasper(py::module_& m) {
   py::class_<O>(m, "GrasperOptions", R"(A grasper's jaws and grip.
 
 GrasperOptions(jaw_length=0.012, jaw_width=0.004, grip_angle=0.1, release_angle=0.2,
-               stiffness=1e4, damping=0.5, max_held=64)
+               stiffness=1e4, damping=0.5, max_held=64, margin=0.001)
 
 Lengths in m, angles in rad, stiffness in N/m and damping in N s/m per held sphere. In the
 grasper's frame the jaws hinge at the origin, reach along +x and open in the x-z plane.)")
       .def(py::init([](Scalar length, Scalar width, Scalar grip, Scalar release, Scalar k,
-                       Scalar c, Index max_held) {
+                       Scalar c, Index max_held, Scalar margin) {
              O o;
              o.jaw_length = length;
              o.jaw_width = width;
@@ -26,20 +26,23 @@ grasper's frame the jaws hinge at the origin, reach along +x and open in the x-z
              o.stiffness = k;
              o.damping = c;
              o.max_held = max_held;
+             o.margin = margin;
              o.validate();
              return o;
            }),
            py::arg("jaw_length") = O{}.jaw_length, py::arg("jaw_width") = O{}.jaw_width,
            py::arg("grip_angle") = O{}.grip_angle, py::arg("release_angle") = O{}.release_angle,
            py::arg("stiffness") = O{}.stiffness, py::arg("damping") = O{}.damping,
-           py::arg("max_held") = O{}.max_held)
+           py::arg("max_held") = O{}.max_held, py::arg("margin") = O{}.margin)
       .def_readonly("jaw_length", &O::jaw_length, "m, from the hinge along +x")
       .def_readonly("jaw_width", &O::jaw_width, "m, along y")
       .def_readonly("grip_angle", &O::grip_angle, "rad: closing past it grips")
       .def_readonly("release_angle", &O::release_angle, "rad: opening past it releases")
       .def_readonly("stiffness", &O::stiffness, "N/m per held sphere")
       .def_readonly("damping", &O::damping, "N s/m per held sphere")
-      .def_readonly("max_held", &O::max_held, "at most this many spheres held");
+      .def_readonly("max_held", &O::max_held, "at most this many spheres held")
+      .def_readonly("margin", &O::margin,
+                    "m: a sphere whose centre is this close to the space between the jaws is held");
 
   py::class_<fc::GraspEvent>(m, "GraspEvent", "What Grasper.update() did.")
       .def_readonly("grasped", &fc::GraspEvent::grasped, "spheres gripped by this update")
@@ -69,8 +72,11 @@ jaws. The grasper owns the simulation's held-node list.)")
           "Moves the jaws (pose, m/s, rad/s) and sets their opening (rad): closing past the grip "
           "angle holds what lies between them, opening past the release angle lets go.")
       .def(
-          "wrench", [](const G& g, const Sim& sim) { return g.wrench(sim.forces()); },
-          py::arg("sim"), "The held spheres' reaction on the jaws after the last step (a Wrench).")
+          "wrench",
+          [](const G& g, const Sim& sim, Scalar step) { return g.wrench(sim.forces(), step); },
+          py::arg("sim"), py::arg("step") = 0.0,
+          "The held spheres' reaction on the jaws after the last step (a Wrench); with `step` (s) "
+          "its stiffness is what the jaws feel over a step as the spheres follow.")
       .def_property_readonly("held", &G::held, "Indices of the spheres held now.")
       .def_property_readonly("holding", &G::holding, "True while spheres are held")
       .def_property_readonly("opening", &G::opening, "the jaws' last opening angle (rad)");

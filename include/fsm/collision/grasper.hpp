@@ -35,6 +35,10 @@ struct GrasperOptions {
   /// stability; about ten times a tissue node's own stiffness at 5 mm spacing.
   Scalar stiffness{Scalar(10000)};
   Scalar damping{Scalar(0.5)};  ///< c of each tie (N s/m), >= 0
+  /// A sphere is gripped when its centre lies within this distance (m) of the space between the
+  /// jaws (the jaws close on its surface, so about the spheres' spacing or less: a larger margin
+  /// picks up the neighbouring tissue too).
+  Scalar margin{Scalar(0.001)};
   Index max_held{64};           ///< At most this many spheres held (the nearest the jaws' plane).
 
   /// @brief fsm::Error ("grasper", reason) for a value out of range.
@@ -49,6 +53,7 @@ struct GrasperOptions {
     if (!(stiffness > 0 && std::isfinite(stiffness))) bad("stiffness must be positive");
     if (!(damping >= 0 && std::isfinite(damping))) bad("damping must be non-negative");
     if (max_held < 1) bad("max_held must be at least 1");
+    if (!(margin >= 0 && std::isfinite(margin))) bad("margin must be non-negative");
   }
 };
 
@@ -127,17 +132,29 @@ class Grasper {
   }
 
   /// @brief The reaction of the held spheres on the jaws at the end of the last step: force
-  /// (N), torque about the pose's position (N m), and the ties' stiffness and damping.
-  [[nodiscard]] Wrench<Scalar> wrench(const ForceModel<Scalar>& forces) const noexcept {
+  /// (N), torque about the pose's position (N m), and how the force changes as the jaws move.
+  ///
+  /// With `step` = 0 the stiffness and damping are the ties' own (the jaws moved against spheres
+  /// that stay put). Over a step of length `step` (s) a held sphere of mass m follows its tie:
+  /// the jaws feel only \f$k/(1 + (h^2 k + h c)/m)\f$ of it (and the damping likewise), about
+  /// \f$m/h^2\f$ for a tie far stiffer than that. Whoever integrates the instrument implicitly
+  /// (ServoLoop's proxy) should take that one: the ties' own would damp its motion by about
+  /// \f$h \sum k\f$ (70 N s/m for seven spheres at the default k) while the spheres follow.
+  [[nodiscard]] Wrench<Scalar> wrench(const ForceModel<Scalar>& forces,
+                                      Scalar step = Scalar(0)) const noexcept {
     Wrench<Scalar> w;
     const HeldNode<Scalar>* h = forces.held();
+    const ScalarArray<Scalar>& inverse_mass = forces.inverse_masses();
     for (Index k = 0; k < forces.num_held(); ++k) {
       if (h[k].instrument != m_id) continue;
       const Vector3<Scalar> p = h[k].target + forces.contact_time() * h[k].target_velocity;
       w.force -= h[k].force;
       w.torque += (p - m_pose.position).cross(-h[k].force);
-      w.stiffness += h[k].stiffness * Matrix3<Scalar>::Identity();
-      w.damping += h[k].damping * Matrix3<Scalar>::Identity();
+      const Scalar follow =
+          Scalar(1) + (step * step * h[k].stiffness + step * h[k].damping) *
+                          (h[k].node < inverse_mass.size() ? inverse_mass[h[k].node] : Scalar(0));
+      w.stiffness += h[k].stiffness / follow * Matrix3<Scalar>::Identity();
+      w.damping += h[k].damping / follow * Matrix3<Scalar>::Identity();
     }
     return w;
   }
@@ -150,14 +167,15 @@ class Grasper {
   [[nodiscard]] bool holding() const noexcept { return !m_held.empty(); }
   [[nodiscard]] Scalar opening() const noexcept { return m_opening; }
   [[nodiscard]] const GrasperOptions<Scalar>& options() const noexcept { return m_options; }
-  /// @brief True if a sphere of `radius` centred at `local` (the jaws' frame) lies between jaws
-  /// opened to `opening`: within the jaws' length and width, and within the wedge between them.
-  [[nodiscard]] bool between_jaws(const Vector3<Scalar>& local, Scalar radius,
-                                  Scalar opening) const noexcept {
-    if (local.x() < -radius || local.x() > m_options.jaw_length + radius) return false;
-    if (std::abs(local.y()) > m_options.jaw_width / 2 + radius) return false;
+  /// @brief True if a sphere centred at `local` (the jaws' frame) lies between jaws opened to
+  /// `opening`, within options().margin: within the jaws' length and width, and within the wedge
+  /// between them.
+  [[nodiscard]] bool between_jaws(const Vector3<Scalar>& local, Scalar opening) const noexcept {
+    const Scalar e = m_options.margin;
+    if (local.x() < -e || local.x() > m_options.jaw_length + e) return false;
+    if (std::abs(local.y()) > m_options.jaw_width / 2 + e) return false;
     const Scalar half = std::tan(std::min(opening, Scalar(3)) / 2);
-    return std::abs(local.z()) <= std::max(Scalar(0), local.x()) * half + radius;
+    return std::abs(local.z()) <= std::max(Scalar(0), local.x()) * half + e;
   }
 
  private:
@@ -166,12 +184,11 @@ class Grasper {
   Index grip(const SphereModel<Scalar>& model) noexcept {
     m_candidates.clear();
     const auto x = model.positions();
-    const auto r = model.radii();
     const auto fixed = model.fixed();
     for (Index i = 0; i < model.num_nodes(); ++i) {
       if (fixed[i]) continue;
       const Vector3<Scalar> local = m_pose.to_local(x.row(i).transpose());
-      if (between_jaws(local, r[i], m_widest)) m_candidates.emplace_back(std::abs(local.z()), i);
+      if (between_jaws(local, m_widest)) m_candidates.emplace_back(std::abs(local.z()), i);
     }
     std::sort(m_candidates.begin(), m_candidates.end());  // in place: no allocation
     const std::size_t n = std::min(m_candidates.size(), std::size_t(m_options.max_held));

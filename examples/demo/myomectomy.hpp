@@ -1,0 +1,25 @@
+#pragma once
+
+// fsm-demo --scenario myomectomy: incise around the fibroid, grasp it and pull until it is free,
+// through the 1 kHz servo loop (docs/demo.md, "The myomectomy scenario").
+
+#include <string>
+
+#include "fsm/tissue_model.hpp"
+
+namespace fsm::examples {
+
+struct ScenarioOptions {
+  std::string out;             ///< where the renders, the force plot and stats.json go
+  bool json{false};            ///< print the statistics as JSON
+  bool render{true};           ///< write the PNG renders
+  int stress{0};               ///< competing busy processes during the session
+  int realtime{0};             ///< SCHED_FIFO priority of the loop's threads; 0: none
+  double capsule_tear{0.2};    ///< tear strain of the fibroid's attachment (the capsule)
+};
+
+/// Runs the scenario on `model` (it needs parts named "body" and "fibroid"; fsm::Error if not).
+/// Returns the process's exit status.
+int run_myomectomy(const TissueModel<double>& model, const ScenarioOptions& options);
+
+}  // namespace fsm::examples
