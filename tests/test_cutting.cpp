@@ -343,7 +343,7 @@ TEST(Tear, BreaksExactlyTheLinksPastTheThreshold) {
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> u(0.02, 0.3);
   for (Index l = 0; l < model.num_links(); ++l) editor.tear_strains()[l] = u(rng);
-  editor.refresh_tearing();
+  editor.refresh_tearing(model);
   ASSERT_TRUE(editor.tears());
   // A non-uniform stretch: strains from 0 to about 0.25 across directions and places.
   for (Index i = 0; i < model.num_nodes(); ++i) {
@@ -387,7 +387,7 @@ TEST(Tear, NegativeOrNaNThresholdIsAnError) {
   SphereModel<double> model = test::block<double>({1, 1, 1}, 0.005);
   TopologyEditor<double> editor(model);
   editor.tear_strains()[0] = std::nan("");
-  EXPECT_THROW(editor.refresh_tearing(), Error);
+  EXPECT_THROW(editor.refresh_tearing(model), Error);
 }
 
 // Pulled apart by a load, a bar tears inside the step where its material says, the step reports

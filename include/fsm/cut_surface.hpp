@@ -94,6 +94,7 @@ class CutSurface {
     m_walls.resize(4 * Index(T), 3);
     m_wall_owner.assign(4 * std::size_t(T), -1);
     m_hidden.assign(std::size_t(nf), 0);
+    m_outcode.assign(std::size_t(nv), 0);
     m_link_seen.assign(std::size_t(L), 1);
     m_tet_seen.assign(std::size_t(T), 1);
     update(model);
@@ -109,15 +110,24 @@ class CutSurface {
         blade.start_a.cwiseMin(blade.start_b).cwiseMin(blade.end_a).cwiseMin(blade.end_b);
     const Vector3<Scalar> hi =
         blade.start_a.cwiseMax(blade.start_b).cwiseMax(blade.end_a).cwiseMax(blade.end_b);
+    // Each vertex's side of the blade's bounding box: a face whose three vertices share an
+    // outside side cannot reach the blade (Cohen and Sutherland's outcodes).
+    for (Index v = 0; v < vertices.rows(); ++v) {
+      std::uint8_t code = 0;
+      for (int c = 0; c < 3; ++c)
+        code = std::uint8_t(code | (int(vertices(v, c) < lo[c]) << (2 * c)) |
+                            (int(vertices(v, c) > hi[c]) << (2 * c + 1)));
+      m_outcode[std::size_t(v)] = code;
+    }
     Index hidden = 0;
     for (Index f = 0; f < Index(m_rest_faces.rows()); ++f) {
       if (m_hidden[std::size_t(f)]) continue;
+      if (m_outcode[std::size_t(m_rest_faces(f, 0))] & m_outcode[std::size_t(m_rest_faces(f, 1))] &
+          m_outcode[std::size_t(m_rest_faces(f, 2))])
+        continue;
       const Vector3<Scalar> a = vertices.row(m_rest_faces(f, 0)).transpose();
       const Vector3<Scalar> b = vertices.row(m_rest_faces(f, 1)).transpose();
       const Vector3<Scalar> c = vertices.row(m_rest_faces(f, 2)).transpose();
-      if ((a.cwiseMax(b).cwiseMax(c).array() < lo.array()).any() ||
-          (a.cwiseMin(b).cwiseMin(c).array() > hi.array()).any())
-        continue;
       if (segment_crosses_blade(a, b, blade) || segment_crosses_blade(b, c, blade) ||
           segment_crosses_blade(c, a, blade)) {
         hide(f);
@@ -237,6 +247,7 @@ class CutSurface {
   FaceArray m_walls;
   Index m_num_walls{0};
   std::vector<std::uint8_t> m_hidden, m_link_seen, m_tet_seen;
+  std::vector<std::uint8_t> m_outcode;  // per skin vertex (add_cut)
 };
 
 }  // namespace fsm

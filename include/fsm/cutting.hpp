@@ -153,9 +153,15 @@ class TopologyEditor {
     m_broken_links.reserve(std::size_t(L));
     m_removed_tetrahedra.clear();
     m_removed_tetrahedra.reserve(std::size_t(T));
-    m_tears = std::any_of(m_tear.data(), m_tear.data() + L,
-                          [](Scalar s) { return s < std::numeric_limits<Scalar>::infinity(); });
+    m_tearable.reserve(std::size_t(L));
+    m_tear_length2.reserve(std::size_t(L));
+    update_tearable(model);
     m_parent.resize(std::size_t(model.num_nodes()));
+    m_outcode.resize(std::size_t(model.num_nodes()));
+    m_tet_continuum.resize(std::size_t(T));
+    for (Index t = 0; t < T; ++t)
+      m_tet_continuum[std::size_t(t)] =
+          model.region(region[tets(t, 0)]).law == ForceLaw::continuum;
     m_piece_fixed.resize(std::size_t(model.num_nodes()));
   }
 
@@ -186,9 +192,8 @@ class TopologyEditor {
       if (force_link[std::size_t(l)]) join(links(l, 0), links(l, 1));
     const auto tets = model.tetrahedra();
     const auto intact = model.tetrahedron_intact();
-    const auto region = model.node_regions();
     for (Index t = 0; t < m_num_tetrahedra; ++t)
-      if (intact[t] && model.region(region[tets(t, 0)]).law == ForceLaw::continuum)
+      if (intact[t] && m_tet_continuum[std::size_t(t)])
         for (int k = 1; k < 4; ++k) join(tets(t, 0), tets(t, k));
     std::fill(m_piece_fixed.begin(), m_piece_fixed.end(), std::uint8_t(0));
     const auto fixed = model.fixed();
@@ -209,21 +214,21 @@ class TopologyEditor {
   }
 
   /// @brief The strain (l - l0) / l0 past which each link tears (`|L|`; infinity = never).
-  /// Writable: call refresh_tearing() after editing it.
+  /// Writable: call refresh_tearing(model) after editing it.
   Eigen::Map<ScalarArray<Scalar>> tear_strains() noexcept { return {m_tear.data(), m_num_links}; }
   [[nodiscard]] Eigen::Map<const ScalarArray<Scalar>> tear_strains() const noexcept {
     return {m_tear.data(), m_num_links};
   }
-  /// @brief Re-reads whether any link can tear after tear_strains() was edited. Throws
-  /// fsm::Error for a tear strain that is not positive (NaN included).
-  void refresh_tearing() {
+  /// @brief Re-reads tear_strains() after it was edited (`model`: its rest lengths turn the
+  /// strains into lengths). Throws fsm::Error for a tear strain that is not positive (NaN
+  /// included).
+  void refresh_tearing(const SphereModel<Scalar>& model) {
     for (Index l = 0; l < m_num_links; ++l)
       if (!(m_tear[l] > Scalar(0)))
         throw Error("", "link " + std::to_string(l),
                     "tear strain " + std::to_string(m_tear[l]) +
                         " must be positive (infinity = never tears)");
-    m_tears = std::any_of(m_tear.data(), m_tear.data() + m_num_links,
-                          [](Scalar s) { return s < std::numeric_limits<Scalar>::infinity(); });
+    update_tearable(model);
   }
   /// @brief True when some link has a finite tear strain (else tear() has nothing to do).
   [[nodiscard]] bool tears() const noexcept { return m_tears; }
@@ -235,19 +240,27 @@ class TopologyEditor {
   TopologyChange cut(SphereModel<Scalar>& model, const Blade<Scalar>& blade) noexcept {
     TopologyChange change;
     clear_events();
-    if (!sized_for(model)) return change;
-    Vector3<Scalar> lo = blade.start_a.cwiseMin(blade.start_b).cwiseMin(blade.end_a).cwiseMin(
-        blade.end_b);
-    Vector3<Scalar> hi = blade.start_a.cwiseMax(blade.start_b).cwiseMax(blade.end_a).cwiseMax(
-        blade.end_b);
+    if (!sized_for(model) || std::size_t(model.num_nodes()) != m_outcode.size()) return change;
+    const Vector3<Scalar> lo =
+        blade.start_a.cwiseMin(blade.start_b).cwiseMin(blade.end_a).cwiseMin(blade.end_b);
+    const Vector3<Scalar> hi =
+        blade.start_a.cwiseMax(blade.start_b).cwiseMax(blade.end_a).cwiseMax(blade.end_b);
     const auto x = model.positions();
+    // Each node's side of the blade's bounding box (Cohen and Sutherland's outcodes): a segment
+    // whose two ends share an outside side cannot reach the blade.
+    for (Index i = 0; i < model.num_nodes(); ++i) {
+      std::uint8_t code = 0;
+      for (int c = 0; c < 3; ++c) {
+        code = std::uint8_t(code | (int(x(i, c) < lo[c]) << (2 * c)) |
+                            (int(x(i, c) > hi[c]) << (2 * c + 1)));
+      }
+      m_outcode[std::size_t(i)] = code;
+    }
     const auto links = model.links();
     auto intact = model.link_intact();
     auto crosses = [&](Index i, Index j) {
-      const Vector3<Scalar> p = x.row(i).transpose(), q = x.row(j).transpose();
-      if ((p.cwiseMax(q).array() < lo.array()).any() || (p.cwiseMin(q).array() > hi.array()).any())
-        return false;
-      return segment_crosses_blade(p, q, blade);
+      if (m_outcode[std::size_t(i)] & m_outcode[std::size_t(j)]) return false;
+      return segment_crosses_blade<Scalar>(x.row(i).transpose(), x.row(j).transpose(), blade);
     };
     for (Index l = 0; l < m_num_links; ++l) {
       if (!intact[l] || !crosses(links(l, 0), links(l, 1))) continue;
@@ -259,6 +272,9 @@ class TopologyEditor {
     auto tet_intact = model.tetrahedron_intact();
     for (Index t = 0; t < m_num_tetrahedra; ++t) {
       if (!tet_intact[t]) continue;
+      if (m_outcode[std::size_t(tets(t, 0))] & m_outcode[std::size_t(tets(t, 1))] &
+          m_outcode[std::size_t(tets(t, 2))] & m_outcode[std::size_t(tets(t, 3))])
+        continue;  // all four on one outside side
       bool cut = false;
       for (int a = 0; a < 4 && !cut; ++a)
         for (int b = a + 1; b < 4 && !cut; ++b) cut = crosses(tets(t, a), tets(t, b));
@@ -281,16 +297,19 @@ class TopologyEditor {
     const auto l0 = model.rest_lengths();
     auto intact = model.link_intact();
     auto tet_intact = model.tetrahedron_intact();
-    for (Index l = 0; l < m_num_links; ++l) {
-      if (!intact[l] || !(m_tear[l] < std::numeric_limits<Scalar>::infinity())) continue;
-      const Scalar length = (x.row(links(l, 1)) - x.row(links(l, 0))).norm();
-      if (!(length > l0[l] * (Scalar(1) + m_tear[l]))) continue;
+    for (std::size_t k = 0; k < m_tearable.size(); ++k) {
+      const Index l = m_tearable[k];
+      if (!intact[l]) continue;
+      const Scalar* p = x.data() + 3 * std::ptrdiff_t(links(l, 0));
+      const Scalar* q = x.data() + 3 * std::ptrdiff_t(links(l, 1));
+      const Scalar dx = q[0] - p[0], dy = q[1] - p[1], dz = q[2] - p[2];
+      if (!(dx * dx + dy * dy + dz * dz > m_tear_length2[k])) continue;
       intact[l] = 0;
       ++change.links_torn;
       record_link(l, change);
-      for (Index k = m_link_tet_start[std::size_t(l)]; k < m_link_tet_start[std::size_t(l) + 1];
-           ++k) {
-        const Index t = m_link_tets[std::size_t(k)];
+      for (Index j = m_link_tet_start[std::size_t(l)]; j < m_link_tet_start[std::size_t(l) + 1];
+           ++j) {
+        const Index t = m_link_tets[std::size_t(j)];
         if (!tet_intact[t]) continue;
         tet_intact[t] = 0;
         ++change.tetrahedra_torn;
@@ -317,6 +336,20 @@ class TopologyEditor {
   }
 
  private:
+  // The links that can tear, and the squared length past which each does.
+  void update_tearable(const SphereModel<Scalar>& model) {
+    m_tearable.clear();
+    m_tear_length2.clear();
+    const auto l0 = model.rest_lengths();
+    for (Index l = 0; l < m_num_links; ++l) {
+      if (!(m_tear[l] < std::numeric_limits<Scalar>::infinity())) continue;
+      const Scalar limit = l0[l] * (Scalar(1) + m_tear[l]);
+      m_tearable.push_back(l);
+      m_tear_length2.push_back(limit * limit);
+    }
+    m_tears = !m_tearable.empty();
+  }
+
   static std::uint64_t edge_key(Index a, Index b) noexcept {
     if (a > b) std::swap(a, b);
     return (std::uint64_t(std::uint32_t(a)) << 32) | std::uint32_t(b);
@@ -340,10 +373,14 @@ class TopologyEditor {
   Index m_num_links{0}, m_num_tetrahedra{0};
   ScalarArray<Scalar> m_tear;
   bool m_tears{false};
+  std::vector<Index> m_tearable;        // links with a finite tear strain, in index order
+  std::vector<Scalar> m_tear_length2;  // per tearable link: (l0 (1 + tear strain))^2
   std::vector<Index> m_link_tet_start, m_link_tets;
   std::vector<Index> m_broken_links, m_removed_tetrahedra;
   std::vector<Index> m_parent;               // union-find over the nodes (count_pieces)
   std::vector<std::uint8_t> m_piece_fixed;  // per root: the piece has a fixed node
+  std::vector<std::uint8_t> m_outcode;      // per node: its side of the blade's box (cut)
+  std::vector<std::uint8_t> m_tet_continuum;  // per tetrahedron: in a continuum region
 };
 
 }  // namespace fsm

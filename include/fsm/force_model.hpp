@@ -351,7 +351,8 @@ class ForceModel {
   Index m_num_held{0};
   Scalar m_contact_time{0};
   bool m_contacts_linearised{false};       // the last step was implicit (contact_work's accounting)
-  std::vector<std::uint8_t> m_force_link;  // per link: carries force
+  std::vector<std::uint8_t> m_force_link;      // per link: carries force
+  std::vector<std::uint8_t> m_continuum_link;  // per link: inside a continuum region
   std::vector<std::pair<Index, Index>> m_force_ranges;  // force links, whatever moves
   detail::ContinuumTerm<Scalar> m_continuum;
   std::vector<Scalar> m_element_force;  // |V| x 3 scratch of prepare_implicit

@@ -168,10 +168,11 @@ class Simulation {
   /// @brief Cuts the links and tetrahedra the blade swept through at the current positions
   /// (between steps; the servo loop calls it before the step it belongs to). No allocation, never
   /// throws: an invalid blade (Blade::validate()) is reported as `rejected` and changes nothing.
-  /// The energy reference restarts (a cut releases the energy its links held).
+  /// The energy reference restarts with the next step (a cut releases the energy its links held;
+  /// that step is checked for finite values only).
   TopologyChange cut(const Blade<Scalar>& blade) noexcept;
   /// @brief The cutting and tearing state: tear strains per link (writable; then
-  /// topology().refresh_tearing()), the links and tetrahedra of the last cut or tear.
+  /// topology().refresh_tearing(model())), the links and tetrahedra of the last cut or tear.
   [[nodiscard]] TopologyEditor<Scalar>& topology() noexcept { return m_topology; }
   [[nodiscard]] const TopologyEditor<Scalar>& topology() const noexcept { return m_topology; }
   /// @}
@@ -226,6 +227,10 @@ class Simulation {
   Positions<Scalar> m_load;         // external forces plus the penalty contacts' forces, per node
   Positions<Scalar> m_saved_x, m_saved_v;
   Scalar m_energy_reference{0};
+  // A cut or a tear removed energy since the reference was taken: the next accepted step takes
+  // its end energy as the new reference instead of checking it (a full energy pass on every cut
+  // would cost more than the cut itself).
+  bool m_reference_stale{false};
   Scalar m_external_work{0};
   Scalar m_energy_floor{0};
   Scalar m_time{0};

@@ -173,7 +173,7 @@ option.)")
             const ScalarArray<Scalar> old = t;
             std::copy(v.data(), v.data() + t.rows(), t.data());
             try {
-              sim.topology().refresh_tearing();
+              sim.topology().refresh_tearing(sim.model());
             } catch (...) {
               t = old;
               throw;

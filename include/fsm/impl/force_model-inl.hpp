@@ -399,6 +399,17 @@ void ForceModel<Scalar>::refresh(const SphereModel<Scalar>& model) {
   m_immobile.resize(std::size_t(n));
   m_inverse_mass.resize(n);
   m_force_link.assign(std::size_t(model.num_links()), 1);
+  // Links inside a continuum region carry no force: the region's elements do.
+  m_continuum_link.assign(std::size_t(model.num_links()), 0);
+  {
+    const auto links = model.links();
+    const auto region = model.node_regions();
+    for (Index l = 0; l < model.num_links(); ++l) {
+      const Index r = region[links(l, 0)];
+      m_continuum_link[std::size_t(l)] =
+          r == region[links(l, 1)] && model.region(r).law == ForceLaw::continuum;
+    }
+  }
   // Worst case: every other link active.
   m_force_ranges.clear();
   m_force_ranges.reserve(std::size_t(model.num_links()) / 2 + 2);
@@ -422,14 +433,9 @@ void ForceModel<Scalar>::update_topology(const SphereModel<Scalar>& model) noexc
   // Links inside a continuum region carry no force (the region's elements do), nor do broken ones.
   const Index L = model.num_links();
   if (Index(m_force_link.size()) != L) return;  // refresh() first
-  const auto links = model.links();
-  const auto region = model.node_regions();
-  const auto intact = model.link_intact();
-  for (Index l = 0; l < L; ++l) {
-    const Index r = region[links(l, 0)];
-    m_force_link[std::size_t(l)] =
-        intact[l] && !(r == region[links(l, 1)] && model.region(r).law == ForceLaw::continuum);
-  }
+  const std::uint8_t* intact = model.link_intact().data();
+  for (std::size_t l = 0; l < std::size_t(L); ++l)
+    m_force_link[l] = std::uint8_t(intact[l] & (m_continuum_link[l] ^ 1));
   m_force_ranges.clear();  // within the capacity refresh() reserved
   for (Index l = 0; l < L;) {
     while (l < L && !m_force_link[std::size_t(l)]) ++l;

@@ -118,9 +118,10 @@ void Simulation<Scalar>::apply_topology_change(TopologyChange& change) noexcept 
   if (!change.any()) return;
   m_forces.update_topology(m_model);
   m_topology.count_pieces(m_model, m_forces.force_links(), change);
-  // The broken links' and elements' energy left the model: a new reference, or the next check
-  // would compare against energy that no longer exists (and a torn link's release is not work).
-  reset_energy_reference();
+  // The broken links' and elements' energy left the model (removing an element also changes its
+  // nodes' volumes, so the continuum law's volumetric energy can rise as well as fall): the next
+  // step's end energy becomes the reference.
+  m_reference_stale = true;
 }
 
 template <typename Scalar>
@@ -287,6 +288,7 @@ template <typename Scalar>
 void Simulation<Scalar>::reset_energy_reference() noexcept {
   m_energy_reference = total_energy();
   m_external_work = Scalar(0);
+  m_reference_stale = false;
 }
 
 template <typename Scalar>
@@ -375,9 +377,18 @@ StepReport<Scalar> Simulation<Scalar>::step(Scalar dt) noexcept {
       // is pressed.
       work = ext.cwiseProduct(x - m_saved_x).sum() + m_forces.contact_work(m_model, m_saved_x);
       energy = total_energy();
-      const Scalar budget = m_energy_reference + m_external_work + work;
-      good = std::isfinite(energy) &&
-             energy <= budget + policy.energy_tolerance * std::abs(budget) + m_energy_floor;
+      if (m_reference_stale) {  // after a cut or a tear: this energy is the new reference
+        good = std::isfinite(energy);
+        if (good) {
+          m_energy_reference = energy;
+          m_external_work = -work;  // added back below: the reference already holds it
+          m_reference_stale = false;
+        }
+      } else {
+        const Scalar budget = m_energy_reference + m_external_work + work;
+        good = std::isfinite(energy) &&
+               energy <= budget + policy.energy_tolerance * std::abs(budget) + m_energy_floor;
+      }
     }
     report.substeps += n;
     report.solver_iterations += iterations;
