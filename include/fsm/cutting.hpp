@@ -294,7 +294,6 @@ class TopologyEditor {
     if (!m_tears || !sized_for(model)) return change;
     const auto x = model.positions();
     const auto links = model.links();
-    const auto l0 = model.rest_lengths();
     auto intact = model.link_intact();
     auto tet_intact = model.tetrahedron_intact();
     for (std::size_t k = 0; k < m_tearable.size(); ++k) {
