@@ -431,6 +431,56 @@ TEST(Tear, ABarPulledByALoadTearsInsideTheStep) {
   }
 }
 
+// The step's incremental updates (the force model by what broke, the pieces by a search from
+// the wound) agree with a rebuild from scratch after every one of a series of random cuts.
+TEST(Topology, IncrementalUpdatesMatchARebuild) {
+  for (const ForceLaw law : {ForceLaw::links, ForceLaw::continuum}) {
+    SphereModel<double> model = test::block<double>({5, 3, 3}, 0.005);
+    model.set_region_law(0, law);
+    for (Index i = 0; i < model.num_nodes(); ++i)
+      if (model.rest_positions()(i, 0) < 1e-9) model.set_fixed(i);
+    Simulation<double> sim(model);
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> u(0, 1);
+    Index cuts = 0;
+    for (int k = 0; k < 25; ++k) {
+      // A blade across the block at a random place and angle, part or all the way through.
+      const double x = 0.003 + 0.02 * u(rng), y0 = -0.002 + 0.006 * u(rng), depth = 0.016 * u(rng);
+      const double tilt = 0.004 * (u(rng) - 0.5);
+      Blade<double> blade;
+      blade.start_a = V3(x, y0, 0.017);
+      blade.start_b = V3(x + tilt, y0 + 0.02, 0.017);
+      blade.end_a = V3(x + tilt, y0, 0.017 - depth - 0.002);
+      blade.end_b = V3(x, y0 + 0.02, 0.017 - depth - 0.002);
+      const TopologyChange c = sim.cut(blade);
+      if (!c.any()) continue;
+      ++cuts;
+      TopologyEditor<double> fresh(sim.model());
+      ForceModel<double> rebuilt(sim.model(), sim.forces().options());
+      TopologyChange full;
+      fresh.count_pieces(sim.model(), rebuilt.force_links(), full);
+      EXPECT_EQ(c.pieces, full.pieces) << to_string(law) << " cut " << k;
+      EXPECT_EQ(c.loose_pieces, full.loose_pieces) << to_string(law) << " cut " << k;
+      // The same partition of the nodes.
+      std::map<Index, Index> to_full;
+      for (Index i = 0; i < sim.model().num_nodes(); ++i) {
+        const auto [it, inserted] = to_full.emplace(sim.topology().piece(i), fresh.piece(i));
+        EXPECT_EQ(it->second, fresh.piece(i)) << "node " << i;
+      }
+      EXPECT_EQ(Index(to_full.size()), full.pieces);
+      EXPECT_EQ(sim.forces().force_links(), rebuilt.force_links());
+      Positions<double> f(sim.model().num_nodes(), 3), g(sim.model().num_nodes(), 3);
+      sim.model().velocities().setRandom();
+      sim.model().velocities() *= 0.01;
+      sim.forces().evaluate(sim.model(), sim.model().positions(), sim.model().velocities(), f);
+      rebuilt.evaluate(sim.model(), sim.model().positions(), sim.model().velocities(), g);
+      EXPECT_TRUE(test::matrices_near(f, g, 1e-12)) << to_string(law) << " cut " << k;
+      for (int s = 0; s < 5; ++s) ASSERT_TRUE(sim.step(1e-3).advanced());
+    }
+    EXPECT_GT(cuts, 10) << to_string(law);
+  }
+}
+
 TEST(Topology, RestoreMakesTheModelWholeAgain) {
   Simulation<double> sim(held_bar(ForceLaw::continuum));
   ASSERT_TRUE(sim.cut(through_bar(0.0175)).any());

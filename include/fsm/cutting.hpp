@@ -156,18 +156,43 @@ class TopologyEditor {
     m_tearable.reserve(std::size_t(L));
     m_tear_length2.reserve(std::size_t(L));
     update_tearable(model);
-    m_parent.resize(std::size_t(model.num_nodes()));
-    m_outcode.resize(std::size_t(model.num_nodes()));
+    const std::size_t n = std::size_t(model.num_nodes());
+    m_parent.resize(n);
+    m_outcode.resize(n);
+    m_label.assign(n, 0);
+    m_label_fixed.assign(2 * n + 1, 0);  // the labels of count_pieces() and one per split
+    m_anchor.assign(2 * n + 1, -1);
+    m_touched.clear();
+    m_touched.reserve(2 * n + 1);
+    m_seen.assign(n, 0);
+    m_generation = 0;
+    m_front_a.resize(n);
+    m_front_b.resize(n);
+    m_labelled = false;
     m_tet_continuum.resize(std::size_t(T));
     for (Index t = 0; t < T; ++t)
       m_tet_continuum[std::size_t(t)] =
           model.region(region[tets(t, 0)]).law == ForceLaw::continuum;
-    m_piece_fixed.resize(std::size_t(model.num_nodes()));
+    // Each node's links and continuum tetrahedra (CSR), for the pieces' searches.
+    std::vector<std::pair<Index, Index>> at;
+    at.reserve(2 * std::size_t(L));
+    for (Index l = 0; l < L; ++l) {
+      at.emplace_back(links(l, 0), l);
+      at.emplace_back(links(l, 1), l);
+    }
+    csr(at, model.num_nodes(), m_node_link_start, m_node_links);
+    at.clear();
+    for (Index t = 0; t < T; ++t)
+      if (m_tet_continuum[std::size_t(t)])
+        for (int k = 0; k < 4; ++k) at.emplace_back(tets(t, k), t);
+    csr(at, model.num_nodes(), m_node_tet_start, m_node_tets);
   }
 
-  /// @brief Counts the pieces of the model, joined by the links with `force_link` set
-  /// (ForceModel::force_links()) and by the intact tetrahedra of continuum regions, into
-  /// `change.pieces`, and those without a fixed node into `change.loose_pieces`. No allocation.
+  /// @brief Counts the pieces of the model from scratch, joined by the links with `force_link`
+  /// set (ForceModel::force_links()) and by the intact tetrahedra of continuum regions, into
+  /// `change.pieces`, and those without a fixed node into `change.loose_pieces`; labels every
+  /// node with its piece (piece()). No allocation. Simulation calls it at refresh and when fixed
+  /// flags change; after a cut or a tear, update_pieces() does the same work incrementally.
   void count_pieces(const SphereModel<Scalar>& model, const std::vector<std::uint8_t>& force_link,
                     TopologyChange& change) noexcept {
     const Index n = model.num_nodes();
@@ -195,23 +220,76 @@ class TopologyEditor {
     for (Index t = 0; t < m_num_tetrahedra; ++t)
       if (intact[t] && m_tet_continuum[std::size_t(t)])
         for (int k = 1; k < 4; ++k) join(tets(t, 0), tets(t, k));
-    std::fill(m_piece_fixed.begin(), m_piece_fixed.end(), std::uint8_t(0));
+    // Labels: each piece's smallest node; fixed nodes counted per label.
+    std::fill(m_label_fixed.begin(), m_label_fixed.end(), Index(0));
     const auto fixed = model.fixed();
-    change.pieces = 0;
+    m_pieces = 0;
     for (Index i = 0; i < n; ++i) {
       const Index r = find(i);
-      if (r == i) ++change.pieces;
-      if (fixed[i]) m_piece_fixed[std::size_t(r)] = 1;
+      m_label[std::size_t(i)] = r;
+      if (r == i) ++m_pieces;
+      if (fixed[i]) ++m_label_fixed[std::size_t(r)];
     }
-    change.loose_pieces = 0;
+    m_loose = 0;
     for (Index i = 0; i < n; ++i)
-      if (m_parent[std::size_t(i)] == i && !m_piece_fixed[std::size_t(i)]) ++change.loose_pieces;
+      if (m_label[std::size_t(i)] == i && m_label_fixed[std::size_t(i)] == 0) ++m_loose;
+    m_next_label = n;
+    m_labelled = true;
+    change.pieces = m_pieces;
+    change.loose_pieces = m_loose;
   }
-  /// @brief After count_pieces(): the piece of node i (its smallest node index).
-  [[nodiscard]] Index piece(Index i) const noexcept {
-    while (m_parent[std::size_t(i)] != i) i = m_parent[std::size_t(i)];
-    return i;
+
+  /// @brief After the last cut() or tear() (its broken_links() and removed_tetrahedra()): splits
+  /// the pieces they disconnected and reports the counts in `change`, as count_pieces() would.
+  /// For each broken link, and each removed continuum tetrahedron, whose nodes were in one piece, a
+  /// search spreads from both ends at once until the two fronts meet (still one piece: it stops
+  /// within the wound's neighbourhood) or one runs out (that side is a new piece, the smaller
+  /// one). Falls back to count_pieces() when not labelled yet. No allocation.
+  void update_pieces(const SphereModel<Scalar>& model, const std::vector<std::uint8_t>& force_link,
+                     TopologyChange& change) noexcept {
+    if (!m_labelled || change.unrecorded > 0 || std::size_t(model.num_nodes()) != m_label.size()) {
+      count_pieces(model, force_link, change);
+      return;
+    }
+    // Every node that lost a connection is checked against an anchor of its piece: a node of the
+    // piece's that is still known to hold together. When the anchor's side is the one cut off,
+    // the node checked becomes the anchor of what is left of the old piece.
+    m_touched.clear();
+    auto consider = [&](Index u) {
+      const Index label = m_label[std::size_t(u)];
+      Index& anchor = m_anchor[std::size_t(label)];
+      if (anchor < 0) {
+        anchor = u;
+        m_touched.push_back(label);
+        return;
+      }
+      if (anchor == u) return;
+      const Index a = anchor;
+      const int moved = split(model, force_link, a, u);
+      if (moved == 0) return;
+      const Index mover = moved == 1 ? a : u;
+      const Index fresh = m_label[std::size_t(mover)];
+      m_anchor[std::size_t(fresh)] = mover;
+      m_touched.push_back(fresh);
+      if (moved == 1) m_anchor[std::size_t(label)] = u;  // the old piece goes on without a's side
+    };
+    const auto links = model.links();
+    for (const Index l : m_broken_links) {
+      consider(links(l, 0));
+      consider(links(l, 1));
+    }
+    const auto tets = model.tetrahedra();
+    for (const Index t : m_removed_tetrahedra)
+      if (m_tet_continuum[std::size_t(t)])
+        for (int k = 0; k < 4; ++k) consider(tets(t, k));
+    for (const Index label : m_touched) m_anchor[std::size_t(label)] = -1;
+    change.pieces = m_pieces;
+    change.loose_pieces = m_loose;
   }
+
+  /// @brief The piece of node i (a label shared by the nodes of one piece), as count_pieces() or
+  /// update_pieces() left it.
+  [[nodiscard]] Index piece(Index i) const noexcept { return m_label[std::size_t(i)]; }
 
   /// @brief The strain (l - l0) / l0 past which each link tears (`|L|`; infinity = never).
   /// Writable: call refresh_tearing(model) after editing it.
@@ -349,6 +427,96 @@ class TopologyEditor {
     m_tears = !m_tearable.empty();
   }
 
+  static void csr(std::vector<std::pair<Index, Index>>& pairs, Index rows,
+                  std::vector<Index>& start, std::vector<Index>& items) {
+    std::sort(pairs.begin(), pairs.end());
+    start.assign(std::size_t(rows) + 1, 0);
+    items.clear();
+    items.reserve(pairs.size());
+    for (const auto& [r, item] : pairs) {
+      ++start[std::size_t(r) + 1];
+      items.push_back(item);
+    }
+    for (Index r = 0; r < rows; ++r) start[std::size_t(r) + 1] += start[std::size_t(r)];
+  }
+
+  // Whether a and b (one piece until now) are still joined; if not, the side whose search ran out
+  // first becomes a new piece. Two breadth-first fronts, expanded one node each in turn. Returns
+  // 0 (joined), 1 (a's side became a new piece) or 2 (b's side did).
+  int split(const SphereModel<Scalar>& model, const std::vector<std::uint8_t>& force_link,
+            Index a, Index b) noexcept {
+    if (a == b || m_label[std::size_t(a)] != m_label[std::size_t(b)]) return 0;
+    if (m_generation > std::numeric_limits<std::uint32_t>::max() - 4) {
+      std::fill(m_seen.begin(), m_seen.end(), std::uint32_t(0));
+      m_generation = 0;
+    }
+    const std::uint32_t mark_a = ++m_generation, mark_b = ++m_generation;
+    std::size_t head_a = 0, head_b = 0, size_a = 1, size_b = 1;
+    m_front_a[0] = a;
+    m_front_b[0] = b;
+    m_seen[std::size_t(a)] = mark_a;
+    m_seen[std::size_t(b)] = mark_b;
+    const auto links = model.links();
+    const auto tets = model.tetrahedra();
+    const auto intact = model.tetrahedron_intact();
+    // Expands one node of a front; true when it touched the other front.
+    auto expand = [&](std::vector<Index>& front, std::size_t& head, std::size_t& size,
+                      std::uint32_t mine, std::uint32_t other) {
+      const Index u = front[head++];
+      auto visit = [&](Index v) {
+        if (m_seen[std::size_t(v)] == other) return true;
+        if (m_seen[std::size_t(v)] != mine) {
+          m_seen[std::size_t(v)] = mine;
+          front[size++] = v;
+        }
+        return false;
+      };
+      for (Index k = m_node_link_start[std::size_t(u)]; k < m_node_link_start[std::size_t(u) + 1];
+           ++k) {
+        const Index l = m_node_links[std::size_t(k)];
+        if (force_link[std::size_t(l)] && visit(links(l, 0) == u ? links(l, 1) : links(l, 0)))
+          return true;
+      }
+      for (Index k = m_node_tet_start[std::size_t(u)]; k < m_node_tet_start[std::size_t(u) + 1];
+           ++k) {
+        const Index t = m_node_tets[std::size_t(k)];
+        if (!intact[t]) continue;
+        for (int c = 0; c < 4; ++c)
+          if (tets(t, c) != u && visit(tets(t, c))) return true;
+      }
+      return false;
+    };
+    for (;;) {
+      if (head_a == size_a) {
+        relabel(model, m_front_a, size_a, m_label[std::size_t(a)]);
+        return 1;
+      }
+      if (expand(m_front_a, head_a, size_a, mark_a, mark_b)) return 0;
+      if (head_b == size_b) {
+        relabel(model, m_front_b, size_b, m_label[std::size_t(b)]);
+        return 2;
+      }
+      if (expand(m_front_b, head_b, size_b, mark_b, mark_a)) return 0;
+    }
+  }
+  // The first `size` nodes of `front` leave piece `old` for a new one.
+  void relabel(const SphereModel<Scalar>& model, const std::vector<Index>& front, std::size_t size,
+               Index old) noexcept {
+    if (std::size_t(m_next_label) >= m_label_fixed.size()) return;  // cannot happen: < n splits
+    const Index label = m_next_label++;
+    const auto fixed = model.fixed();
+    Index held = 0;
+    for (std::size_t k = 0; k < size; ++k) {
+      m_label[std::size_t(front[k])] = label;
+      held += fixed[front[k]];
+    }
+    const bool old_loose = m_label_fixed[std::size_t(old)] == 0;
+    m_label_fixed[std::size_t(old)] -= held;
+    m_label_fixed[std::size_t(label)] = held;
+    ++m_pieces;
+    m_loose += Index(held == 0) + Index(!old_loose && m_label_fixed[std::size_t(old)] == 0);
+  }
+
   static std::uint64_t edge_key(Index a, Index b) noexcept {
     if (a > b) std::swap(a, b);
     return (std::uint64_t(std::uint32_t(a)) << 32) | std::uint32_t(b);
@@ -377,7 +545,16 @@ class TopologyEditor {
   std::vector<Index> m_link_tet_start, m_link_tets;
   std::vector<Index> m_broken_links, m_removed_tetrahedra;
   std::vector<Index> m_parent;               // union-find over the nodes (count_pieces)
-  std::vector<std::uint8_t> m_piece_fixed;  // per root: the piece has a fixed node
+  // The pieces: a label per node, fixed nodes per label, the counts; the nodes' links and
+  // continuum tetrahedra and the two fronts of update_pieces()' searches.
+  std::vector<Index> m_label, m_label_fixed;
+  std::vector<Index> m_anchor, m_touched;  // per label: a node known to be in it (update_pieces)
+  Index m_pieces{0}, m_loose{0}, m_next_label{0};
+  bool m_labelled{false};
+  std::vector<Index> m_node_link_start, m_node_links, m_node_tet_start, m_node_tets;
+  std::vector<Index> m_front_a, m_front_b;
+  std::vector<std::uint32_t> m_seen;
+  std::uint32_t m_generation{0};
   std::vector<std::uint8_t> m_outcode;      // per node: its side of the blade's box (cut)
   std::vector<std::uint8_t> m_tet_continuum;  // per tetrahedron: in a continuum region
 };

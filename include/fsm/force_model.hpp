@@ -148,6 +148,11 @@ class ForceModel {
   /// tetrahedron_intact()) after a cut or a tear. Real-time: no allocation (the capacity is
   /// reserved by refresh()); does nothing if the model changed size since refresh().
   void update_topology(const SphereModel<Scalar>& model) noexcept;
+  /// @brief The same after a cut or a tear that broke `broken_links` and removed
+  /// `removed_tetrahedra` (TopologyEditor's lists), updating the continuum term by what they
+  /// remove rather than from scratch. No allocation.
+  void update_topology(const SphereModel<Scalar>& model, const std::vector<Index>& broken_links,
+                       const std::vector<Index>& removed_tetrahedra) noexcept;
 
   [[nodiscard]] const Options& options() const noexcept { return m_options; }
   /// @brief Changes the options (thread buffers are resized here, not in the step); fsm::Error
@@ -335,6 +340,7 @@ class ForceModel {
   void resize_scratch();
 
   void update_mobility(const SphereModel<Scalar>& model) noexcept;
+  void update_ranges(const SphereModel<Scalar>& model) noexcept;
 
   Options m_options;
   Index m_num_nodes{0};

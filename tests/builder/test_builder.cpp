@@ -122,6 +122,43 @@ TEST_F(Scenes, BuildsJoinsAnchorsAndBindsTheSurface) {
             model.spheres.num_links());
 }
 
+// Tear strains: a material's reaches its region, an attachment's its links; they survive the model
+// file; a bad one is named.
+TEST_F(Scenes, TearStrainsGoFromTheSceneToTheModel) {
+  const std::string tearing_ball =
+      R"({"name": "ball", "mesh": "ball.obj", "mesh_units": "m", "topology": "tetrahedral",
+          "radius": 0.5, "material": {"density": 1050, "youngs_modulus": 13150, "viscosity": 10.26,
+          "tear_strain": 0.8}})";
+  const std::string path = scene(
+      tearing_ball + "," + tube(),
+      R"(, "attachments": [{"parts": ["ball", "tube"], "tolerance": 0.3, "tear_strain": 0.25}],
+      "fixed": [{"part": "ball", "box": {"min": [-3, -3, -3], "max": [3, 3, -1.2]}}])");
+  const TissueModel<double> model = deserialize_model(serialize_model(build_model(path)), "file");
+  const SphereModel<double>& s = model.spheres;
+  EXPECT_EQ(s.region(model.part("ball").region).material.tear_strain, 0.8);
+  EXPECT_TRUE(std::isinf(s.region(model.part("tube").region).material.tear_strain));
+  ASSERT_GT(model.num_attachment_links, 0);
+  for (Index l = 0; l < s.num_links(); ++l) {
+    const bool attachment = l >= model.first_attachment_link &&
+                            l < model.first_attachment_link + model.num_attachment_links;
+    if (attachment)
+      EXPECT_EQ(s.tear_strain()[l], 0.25) << l;
+    else
+      EXPECT_TRUE(std::isinf(s.tear_strain()[l])) << l;
+  }
+  // The simulation's limits: the smallest of the link's own and its regions' materials'.
+  Simulation<double> sim(s);
+  const Index inside = model.part("ball").first_link;
+  const Index tube_link = model.part("tube").first_link;
+  EXPECT_EQ(sim.topology().tear_strains()[inside], 0.8);
+  EXPECT_TRUE(std::isinf(sim.topology().tear_strains()[tube_link]));
+  EXPECT_EQ(sim.topology().tear_strains()[model.first_attachment_link], 0.25);
+  expect_error(scene(ball() + "," + tube(),
+                     R"(, "attachments": [{"parts": ["ball", "tube"], "tolerance": 0.3,
+                          "tear_strain": -1}])"),
+               "attachment 0", "tear_strain");
+}
+
 // Reproducible builds: the same scene gives the same bytes, whatever the heap looked like before
 // (the medial axis's contraction picks edges in address order, deterministic_arena.hpp), the stored
 // report has no wall times and names meshes relative to the scene; progress only grows.

@@ -303,7 +303,45 @@ class ContinuumTerm {
     m_node_scratch.assign(std::size_t(n), Scalar(0));
     m_energy_scratch.assign(std::size_t(n), Scalar(0));  // energy() reuses it without growing
     m_node_volume_whole = m_node_volume;
+    // Each element's six (edge, share) pairs and each model tetrahedron's element, for remove().
+    m_tet_element.assign(std::size_t(model.num_tetrahedra()), -1);
+    for (std::size_t t = 0; t < nt; ++t) m_tet_element[std::size_t(m_element_tet[t])] = Index(t);
+    m_element_edge.assign(12 * nt, 0);
+    {
+      std::vector<int> filled(nt, 0);
+      for (std::size_t e = 0; e < num_edges(); ++e)
+        for (Index p = m_edge_part_start[e]; p < m_edge_part_start[e + 1]; ++p) {
+          const auto t = std::size_t(m_edge_part_element[std::size_t(p)]);
+          const std::size_t slot = 12 * t + 2 * std::size_t(filled[t]++);
+          m_element_edge[slot] = Index(e);
+          m_element_edge[slot + 1] = p;
+        }
+    }
+    m_node_count.assign(std::size_t(n), 0);
+    m_edge_count.assign(num_edges(), 0);
     apply_topology(model.tetrahedron_intact().data());
+  }
+
+  /// Takes the given model tetrahedra out (those of continuum regions not out already), updating
+  /// the nodes' volumes and the edges' springs by what each removes: O(removed), no allocation.
+  void remove(const Index* tets, std::size_t count) noexcept {
+    for (std::size_t k = 0; k < count; ++k) {
+      const Index t = tets[k];
+      if (t < 0 || std::size_t(t) >= m_tet_element.size()) continue;
+      const Index e = m_tet_element[std::size_t(t)];
+      if (e < 0 || m_removed[std::size_t(e)]) continue;
+      m_removed[std::size_t(e)] = 1;
+      for (std::size_t c = 0; c < 4; ++c) {
+        const auto a = std::size_t(m_tets[4 * std::size_t(e) + c]);
+        m_node_volume[a] = --m_node_count[a] > 0 ? m_node_volume[a] - m_volume[std::size_t(e)] / 4
+                                                 : Scalar(0);
+      }
+      for (std::size_t c = 0; c < 6; ++c) {
+        const auto edge = std::size_t(m_element_edge[12 * std::size_t(e) + 2 * c]);
+        const auto part = std::size_t(m_element_edge[12 * std::size_t(e) + 2 * c + 1]);
+        m_edge_k[edge] = --m_edge_count[edge] > 0 ? m_edge_k[edge] - m_edge_part_k[part] : Scalar(0);
+      }
+    }
   }
 
   /// Takes the model's removed tetrahedra out (`intact`: per model tetrahedron, 0 = removed): a
@@ -316,6 +354,16 @@ class ContinuumTerm {
     for (std::size_t t = 0; t < nt; ++t) {
       m_removed[t] = intact[m_element_tet[t]] ? 0 : 1;
       removed += m_removed[t];
+    }
+    std::fill(m_node_count.begin(), m_node_count.end(), Index(0));
+    for (std::size_t t = 0; t < nt; ++t)
+      if (!m_removed[t])
+        for (std::size_t k = 0; k < 4; ++k) ++m_node_count[std::size_t(m_tets[4 * t + k])];
+    for (std::size_t e = 0; e < num_edges(); ++e) {
+      Index c = 0;
+      for (Index p = m_edge_part_start[e]; p < m_edge_part_start[e + 1]; ++p)
+        c += m_removed[std::size_t(m_edge_part_element[std::size_t(p)])] ? 0 : 1;
+      m_edge_count[e] = c;
     }
     if (removed == 0) {
       std::copy(m_node_volume_whole.begin(), m_node_volume_whole.end(), m_node_volume.begin());
@@ -904,6 +952,9 @@ class ContinuumTerm {
   std::vector<Index> m_element_tet;     // per element: its tetrahedron in the model
   std::vector<std::uint8_t> m_removed;  // per element: cut or torn (carries nothing)
   std::vector<Scalar> m_node_volume_whole, m_edge_k_whole;  // before any removal
+  std::vector<Index> m_tet_element;   // per model tetrahedron: its element, or -1
+  std::vector<Index> m_element_edge;  // 12 per element: (edge, share in the edge's CSR) x 6
+  std::vector<Index> m_node_count, m_edge_count;  // intact elements at each node, on each edge
   std::vector<Scalar> m_dm_inv;                                // 9 per element, column-major D_m^-1
   std::vector<Scalar> m_volume;                                // rest volume per element (m^3)
   std::vector<Scalar> m_c10, m_c10_large, m_q_switch;          // per element

@@ -436,16 +436,22 @@ void ForceModel<Scalar>::update_topology(const SphereModel<Scalar>& model) noexc
   const std::uint8_t* intact = model.link_intact().data();
   for (std::size_t l = 0; l < std::size_t(L); ++l)
     m_force_link[l] = std::uint8_t(intact[l] & (m_continuum_link[l] ^ 1));
-  m_force_ranges.clear();  // within the capacity refresh() reserved
-  for (Index l = 0; l < L;) {
-    while (l < L && !m_force_link[std::size_t(l)]) ++l;
-    const Index begin = l;
-    while (l < L && m_force_link[std::size_t(l)]) ++l;
-    if (l > begin) m_force_ranges.emplace_back(begin, l);
-  }
   m_continuum.apply_topology(model.tetrahedron_intact().data());
   m_base_h = Scalar(-1);  // the kept rhs and diagonal of prepare_implicit() are stale
-  update_mobility(model);
+  update_mobility(model);  // and the ranges
+}
+
+template <typename Scalar>
+void ForceModel<Scalar>::update_topology(const SphereModel<Scalar>& model,
+                                         const std::vector<Index>& broken_links,
+                                         const std::vector<Index>& removed_tetrahedra) noexcept {
+  const Index L = model.num_links();
+  if (Index(m_force_link.size()) != L) return;  // refresh() first
+  for (const Index l : broken_links)
+    if (l >= 0 && l < L) m_force_link[std::size_t(l)] = 0;
+  m_continuum.remove(removed_tetrahedra.data(), removed_tetrahedra.size());
+  m_base_h = Scalar(-1);
+  update_ranges(model);
 }
 
 template <typename Scalar>
@@ -456,20 +462,35 @@ void ForceModel<Scalar>::update_mobility(const SphereModel<Scalar>& model) noexc
     m_immobile[std::size_t(i)] = (fixed[i] || m_asleep[std::size_t(i)]) ? 1 : 0;
     m_inverse_mass[i] = m_immobile[std::size_t(i)] ? Scalar(0) : Scalar(1) / mass[i];
   }
+  update_ranges(model);
+}
+
+// The force links' ranges and the active ones' (carries force and has a mobile end), in one pass
+// and within the capacity refresh() reserved.
+template <typename Scalar>
+void ForceModel<Scalar>::update_ranges(const SphereModel<Scalar>& model) noexcept {
+  m_force_ranges.clear();
   m_ranges.clear();
-  const auto links = model.links();
+  const Index* ij = model.links().data();
   const Index L = model.num_links();
-  // Active: carries force and has a mobile end.
-  auto active = [&](Index l) {
-    return m_force_link[std::size_t(l)] &&
-           !(m_immobile[std::size_t(links(l, 0))] && m_immobile[std::size_t(links(l, 1))]);
-  };
-  for (Index l = 0; l < L;) {
-    while (l < L && !active(l)) ++l;
-    const Index begin = l;
-    while (l < L && active(l)) ++l;
-    if (l > begin) m_ranges.emplace_back(begin, l);
+  Index force_begin = -1, active_begin = -1;
+  for (Index l = 0; l < L; ++l) {
+    const bool force = m_force_link[std::size_t(l)] != 0;
+    const bool active = force && !(m_immobile[std::size_t(ij[2 * l])] &&
+                                   m_immobile[std::size_t(ij[2 * l + 1])]);
+    if (force && force_begin < 0) force_begin = l;
+    if (!force && force_begin >= 0) {
+      m_force_ranges.emplace_back(force_begin, l);
+      force_begin = -1;
+    }
+    if (active && active_begin < 0) active_begin = l;
+    if (!active && active_begin >= 0) {
+      m_ranges.emplace_back(active_begin, l);
+      active_begin = -1;
+    }
   }
+  if (force_begin >= 0) m_force_ranges.emplace_back(force_begin, L);
+  if (active_begin >= 0) m_ranges.emplace_back(active_begin, L);
 }
 
 template <typename Scalar>

@@ -106,6 +106,8 @@ void Simulation<Scalar>::refresh() {
     throw Error("", "sleep policy", "speeds and time must be non-negative");
 
   m_topology.refresh(m_model);
+  TopologyChange pieces;
+  m_topology.count_pieces(m_model, m_forces.force_links(), pieces);
 
   m_saved_x.resize(m_model.num_nodes(), 3);
   m_saved_v.resize(m_model.num_nodes(), 3);
@@ -116,8 +118,11 @@ void Simulation<Scalar>::refresh() {
 template <typename Scalar>
 void Simulation<Scalar>::apply_topology_change(TopologyChange& change) noexcept {
   if (!change.any()) return;
-  m_forces.update_topology(m_model);
-  m_topology.count_pieces(m_model, m_forces.force_links(), change);
+  if (change.unrecorded > 0)
+    m_forces.update_topology(m_model);
+  else
+    m_forces.update_topology(m_model, m_topology.broken_links(), m_topology.removed_tetrahedra());
+  m_topology.update_pieces(m_model, m_forces.force_links(), change);
   // The broken links' and elements' energy left the model (removing an element also changes its
   // nodes' volumes, so the continuum law's volumetric energy can rise as well as fall): the next
   // step's end energy becomes the reference.
@@ -259,6 +264,8 @@ void Simulation<Scalar>::set_fixed(Index node, bool fixed) {
                       m_fixed_nodes.end());
   if (fixed) m_fixed_nodes.push_back(node);
   m_forces.refresh(m_model);
+  TopologyChange pieces;  // which pieces hold a fixed node changed
+  m_topology.count_pieces(m_model, m_forces.force_links(), pieces);
   m_bound = fsm::spectral_bound(m_model, m_options.forces.damping);
   m_bound.damping_max += m_options.forces.drag;
   save_state();
