@@ -64,7 +64,9 @@ void BM_UterusTearCheck(benchmark::State& state) {
   const TissueModel<double>& u = uterus();
   const Part& body = u.part("body");
   const Part& fibroid = u.part("fibroid");
-  auto in = [](const Part& p, Index i) { return i >= p.first_node && i < p.first_node + p.num_nodes; };
+  auto in = [](const Part& p, Index i) {
+    return i >= p.first_node && i < p.first_node + p.num_nodes;
+  };
   Index tearable = 0;
   for (Index l = 0; l < m.num_links(); ++l) {
     const Index i = m.links()(l, 0), j = m.links()(l, 1);

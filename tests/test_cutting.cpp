@@ -276,9 +276,9 @@ TEST(CutSurface, NoFaceSpansTheCutAndTheWoundHasWalls) {
     }
     EXPECT_EQ(piece.size(), 1u) << "face " << f;
     for (int k = 0; k < 3; ++k)
-      EXPECT_LT((render.row(skin.rest.faces(f, k)) - render.row(skin.rest.faces(f, (k + 1) % 3)))
-                    .norm(),
-                0.0075);
+      EXPECT_LT(
+          (render.row(skin.rest.faces(f, k)) - render.row(skin.rest.faces(f, (k + 1) % 3))).norm(),
+          0.0075);
   }
   EXPECT_GT(visible, skin.rest.num_faces() / 2);
   // Walls follow the same rule: each within one piece.
@@ -305,10 +305,10 @@ TEST(CutSurface, AddCutHidesExactlyTheFacesTheBladeCrossed) {
   for (Index f = 0; f < skin.rest.num_faces(); ++f) {
     bool crossed = false;
     for (int k = 0; k < 3; ++k)
-      crossed = crossed || segment_crosses_blade<double>(
-                               skin.rest.vertices.row(skin.rest.faces(f, k)).transpose(),
-                               skin.rest.vertices.row(skin.rest.faces(f, (k + 1) % 3)).transpose(),
-                               blade);
+      crossed = crossed ||
+                segment_crosses_blade<double>(
+                    skin.rest.vertices.row(skin.rest.faces(f, k)).transpose(),
+                    skin.rest.vertices.row(skin.rest.faces(f, (k + 1) % 3)).transpose(), blade);
     EXPECT_EQ(surface.hidden(f), crossed) << f;
     expected += crossed;
     if (surface.hidden(f)) {  // written degenerate

@@ -89,7 +89,8 @@ TEST_P(Grasp, HoldsWhatItClosesOnFollowsTheJawsAndReleases) {
   EXPECT_FALSE(grasper.holding());
   EXPECT_EQ(sim.forces().num_held(), 0);
   for (int s = 0; s < 1500; ++s) ASSERT_TRUE(sim.step(h).advanced());
-  const double back = (sim.model().positions() - sim.model().rest_positions()).cwiseAbs().maxCoeff();
+  const double back =
+      (sim.model().positions() - sim.model().rest_positions()).cwiseAbs().maxCoeff();
   EXPECT_LT(back, 1e-4) << "released tissue returns to rest";
   EXPECT_EQ(grasper.wrench(sim.forces()).force.norm(), 0.0);
 }

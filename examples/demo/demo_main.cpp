@@ -91,9 +91,10 @@ int parse(int argc, char** argv, Args& a) {
                  "on another (docs/haptics.md)")
       ->check(CLI::IsMember({"lockstep", "decoupled"}))
       ->capture_default_str();
-  app.add_option("--scenario", a.scenario,
-                 "probing: the default session; myomectomy: incise around the fibroid, grasp it and "
-                 "pull until it is free (the bundled uterus; docs/demo.md)")
+  app.add_option(
+         "--scenario", a.scenario,
+         "probing: the default session; myomectomy: incise around the fibroid, grasp it and "
+         "pull until it is free (the bundled uterus; docs/demo.md)")
       ->check(CLI::IsMember({"probing", "myomectomy"}))
       ->capture_default_str();
   app.add_option("--capsule-tear", a.capsule_tear,

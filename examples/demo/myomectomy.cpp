@@ -231,7 +231,9 @@ double percentile(std::vector<double> v, double q) {
 int run_myomectomy(const TissueModel<double>& model, const ScenarioOptions& opt) {
   const Part& body = find_part(model, "body");
   const Part& fibroid = find_part(model, "fibroid");
-  auto in = [](const Part& p, Index i) { return i >= p.first_node && i < p.first_node + p.num_nodes; };
+  auto in = [](const Part& p, Index i) {
+    return i >= p.first_node && i < p.first_node + p.num_nodes;
+  };
 
   // ---- The simulation, as the probing session's (docs/demo.md), settled under gravity.
   Simulation<double>::Options so;
@@ -294,8 +296,8 @@ int run_myomectomy(const TissueModel<double>& model, const ScenarioOptions& opt)
   script.push_back({0.7, ring(0) + 0.015 * axis, q, 0});
   script.push_back({k_incision_start, ring(0), q, 0});
   for (int deg = 10; deg <= 300; deg += 10)
-    script.push_back({k_incision_start + (k_incision_end - k_incision_start) * deg / 300.0,
-                      ring(deg), q, 0});
+    script.push_back(
+        {k_incision_start + (k_incision_end - k_incision_start) * deg / 300.0, ring(deg), q, 0});
   script.push_back({4.4, ring(300) + 0.015 * axis, q, 0});
   script.push_back({4.9, hinge + 0.01 * axis, q, 0});
   script.push_back({5.2, hinge, q, 0});
@@ -387,8 +389,8 @@ int run_myomectomy(const TissueModel<double>& model, const ScenarioOptions& opt)
     }
     cmd.colour = {0.8f, 0.3f, 0.1f};
     cmd.label = "commanded to the device (N)";
-    draw_plot({jaw, cmd}, "myomectomy: incise, grasp, pull until free", "time (s)", "N",
-              gl.width(), gl.height());
+    draw_plot({jaw, cmd}, "myomectomy: incise, grasp, pull until free", "time (s)", "N", gl.width(),
+              gl.height());
     write_png(opt.out + "/myomectomy_force.png", read_pixels(gl.width(), gl.height()), gl.width(),
               gl.height());
     written.push_back("myomectomy_force.png");
@@ -409,10 +411,10 @@ int run_myomectomy(const TissueModel<double>& model, const ScenarioOptions& opt)
       model.name.c_str(), int(model.spheres.num_nodes()), int(held_body),
       int(action.capsule_links()), opt.capsule_tear, int(action.cut().links_cut),
       int(action.cut().tetrahedra_cut), int(action.capsule_after_incision()),
-      int(action.torn_links()), int(action.grasped()), freed ? "true" : "false",
-      action.free_time(), peak, st.peak_force, st.ticks, st.missed_deadlines,
-      st.period_p99 * 1e6, percentile(steps, 0.5) * 1e6, percentile(steps, 0.99) * 1e6,
-      st.step_max * 1e6, st.watchdog_trips, st.diverged_steps, stress.count(), opt.out.c_str());
+      int(action.torn_links()), int(action.grasped()), freed ? "true" : "false", action.free_time(),
+      peak, st.peak_force, st.ticks, st.missed_deadlines, st.period_p99 * 1e6,
+      percentile(steps, 0.5) * 1e6, percentile(steps, 0.99) * 1e6, st.step_max * 1e6,
+      st.watchdog_trips, st.diverged_steps, stress.count(), opt.out.c_str());
   {
     std::ofstream out(opt.out + "/stats.json");
     out << json << '\n';
@@ -422,14 +424,15 @@ int run_myomectomy(const TissueModel<double>& model, const ScenarioOptions& opt)
   } else {
     std::printf("myomectomy on %s (%d spheres; the manipulator holds %d body spheres)\n",
                 model.name.c_str(), int(model.spheres.num_nodes()), int(held_body));
-    std::printf("  incision: %d links and %d tetrahedra cut; the capsule keeps %d of its %d links\n",
-                int(action.cut().links_cut), int(action.cut().tetrahedra_cut),
-                int(action.capsule_after_incision()), int(action.capsule_links()));
-    std::printf("  grasp: %d spheres held; pull: %d links torn (tear strain %.2f); %s\n",
-                int(action.grasped()), int(action.torn_links()), opt.capsule_tear,
-                freed ? ("free at t = " + std::to_string(action.free_time()).substr(0, 5) + " s")
-                            .c_str()
-                      : "NOT free by the end");
+    std::printf(
+        "  incision: %d links and %d tetrahedra cut; the capsule keeps %d of its %d links\n",
+        int(action.cut().links_cut), int(action.cut().tetrahedra_cut),
+        int(action.capsule_after_incision()), int(action.capsule_links()));
+    std::printf(
+        "  grasp: %d spheres held; pull: %d links torn (tear strain %.2f); %s\n",
+        int(action.grasped()), int(action.torn_links()), opt.capsule_tear,
+        freed ? ("free at t = " + std::to_string(action.free_time()).substr(0, 5) + " s").c_str()
+              : "NOT free by the end");
     std::printf("  peak force on the jaws %.2f N (commanded to the device: %.2f N)\n", peak,
                 st.peak_force);
     std::printf(

@@ -10,12 +10,12 @@
 namespace fsm::examples {
 
 struct ScenarioOptions {
-  std::string out;             ///< where the renders, the force plot and stats.json go
-  bool json{false};            ///< print the statistics as JSON
-  bool render{true};           ///< write the PNG renders
-  int stress{0};               ///< competing busy processes during the session
-  int realtime{0};             ///< SCHED_FIFO priority of the loop's threads; 0: none
-  double capsule_tear{0.2};    ///< tear strain of the fibroid's attachment (the capsule)
+  std::string out;           ///< where the renders, the force plot and stats.json go
+  bool json{false};          ///< print the statistics as JSON
+  bool render{true};         ///< write the PNG renders
+  int stress{0};             ///< competing busy processes during the session
+  int realtime{0};           ///< SCHED_FIFO priority of the loop's threads; 0: none
+  double capsule_tear{0.2};  ///< tear strain of the fibroid's attachment (the capsule)
 };
 
 /// Runs the scenario on `model` (it needs parts named "body" and "fibroid"; fsm::Error if not).

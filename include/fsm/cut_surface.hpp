@@ -43,11 +43,12 @@ class CutSurface {
     std::vector<std::pair<std::uint64_t, Index>> keys;
     keys.reserve(std::size_t(L));
     const auto links = model.links();
-    for (Index l = 0; l < L; ++l) keys.emplace_back(edge_key(links(l, 0), links(l, 1)), l);
+    for (Index l = 0; l < L; ++l) keys.emplace_back(detail::edge_key(links(l, 0), links(l, 1)), l);
     std::sort(keys.begin(), keys.end());
     auto find_link = [&](Index a, Index b) -> Index {
-      const auto it = std::lower_bound(keys.begin(), keys.end(), std::make_pair(edge_key(a, b), 0));
-      return it != keys.end() && it->first == edge_key(a, b) ? it->second : Index(-1);
+      const auto it =
+          std::lower_bound(keys.begin(), keys.end(), std::make_pair(detail::edge_key(a, b), 0));
+      return it != keys.end() && it->first == detail::edge_key(a, b) ? it->second : Index(-1);
     };
     // The links each skin vertex depends on (CSR, link -> vertices).
     std::vector<std::pair<Index, Index>> link_vertex;
@@ -67,11 +68,11 @@ class CutSurface {
           if (l >= 0) link_vertex.emplace_back(l, v);
         }
     }
-    csr(link_vertex, L, m_link_vertex_start, m_link_vertices);
+    detail::build_csr(link_vertex, L, m_link_vertex_start, m_link_vertices, true);
     std::vector<std::pair<Index, Index>> vertex_face;
     for (Index f = 0; f < nf; ++f)
       for (int k = 0; k < 3; ++k) vertex_face.emplace_back(skin.rest.faces(f, k), f);
-    csr(vertex_face, nv, m_vertex_face_start, m_vertex_faces);
+    detail::build_csr(vertex_face, nv, m_vertex_face_start, m_vertex_faces, true);
     // Tetrahedron faces and their neighbours across them.
     const auto tets = model.tetrahedra();
     std::vector<std::pair<std::array<Index, 3>, Index>> tri;  // (sorted face, 4 t + local face)
@@ -112,13 +113,8 @@ class CutSurface {
         blade.start_a.cwiseMax(blade.start_b).cwiseMax(blade.end_a).cwiseMax(blade.end_b);
     // Each vertex's side of the blade's bounding box: a face whose three vertices share an
     // outside side cannot reach the blade (Cohen and Sutherland's outcodes).
-    for (Index v = 0; v < vertices.rows(); ++v) {
-      std::uint8_t code = 0;
-      for (int c = 0; c < 3; ++c)
-        code = std::uint8_t(code | (int(vertices(v, c) < lo[c]) << (2 * c)) |
-                            (int(vertices(v, c) > hi[c]) << (2 * c + 1)));
-      m_outcode[std::size_t(v)] = code;
-    }
+    for (Index v = 0; v < vertices.rows(); ++v)
+      m_outcode[std::size_t(v)] = detail::outcode<Scalar>(vertices.row(v), lo, hi);
     Index hidden = 0;
     for (Index f = 0; f < Index(m_rest_faces.rows()); ++f) {
       if (m_hidden[std::size_t(f)]) continue;
@@ -193,23 +189,6 @@ class CutSurface {
   [[nodiscard]] Index num_walls() const noexcept { return m_num_walls; }
 
  private:
-  static std::uint64_t edge_key(Index a, Index b) noexcept {
-    if (a > b) std::swap(a, b);
-    return (std::uint64_t(std::uint32_t(a)) << 32) | std::uint32_t(b);
-  }
-  static void csr(std::vector<std::pair<Index, Index>>& pairs, Index rows,
-                  std::vector<Index>& start, std::vector<Index>& items) {
-    std::sort(pairs.begin(), pairs.end());
-    pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
-    start.assign(std::size_t(rows) + 1, 0);
-    items.clear();
-    items.reserve(pairs.size());
-    for (const auto& [r, item] : pairs) {
-      ++start[std::size_t(r) + 1];
-      items.push_back(item);
-    }
-    for (Index r = 0; r < rows; ++r) start[std::size_t(r) + 1] += start[std::size_t(r)];
-  }
   void hide(Index f) noexcept {
     if (m_hidden[std::size_t(f)]) return;
     m_hidden[std::size_t(f)] = 1;

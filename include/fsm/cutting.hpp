@@ -20,6 +20,39 @@
 
 namespace fsm {
 
+namespace detail {
+/// The key of the undirected edge (a, b): the smaller index in the high half.
+inline std::uint64_t edge_key(Index a, Index b) noexcept {
+  if (a > b) std::swap(a, b);
+  return (std::uint64_t(std::uint32_t(a)) << 32) | std::uint32_t(b);
+}
+/// (row, item) pairs as a compressed row table: items of row r are items[start[r], start[r + 1])
+/// (allocates: refresh-time only). The pairs are sorted in place; `unique` drops repeats.
+inline void build_csr(std::vector<std::pair<Index, Index>>& pairs, Index rows,
+                      std::vector<Index>& start, std::vector<Index>& items, bool unique = false) {
+  std::sort(pairs.begin(), pairs.end());
+  if (unique) pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+  start.assign(std::size_t(rows) + 1, 0);
+  items.clear();
+  items.reserve(pairs.size());
+  for (const auto& [r, item] : pairs) {
+    ++start[std::size_t(r) + 1];
+    items.push_back(item);
+  }
+  for (Index r = 0; r < rows; ++r) start[std::size_t(r) + 1] += start[std::size_t(r)];
+}
+/// Which sides of the box [lo, hi] point p lies beyond (Cohen and Sutherland's outcode: bit 2c
+/// below, 2c + 1 above, on axis c). Segments or triangles whose points share a bit miss the box.
+template <typename Scalar, typename Point>
+std::uint8_t outcode(const Point& p, const Vector3<Scalar>& lo,
+                     const Vector3<Scalar>& hi) noexcept {
+  int code = 0;
+  for (int c = 0; c < 3; ++c)
+    code |= (int(p[c] < lo[c]) << (2 * c)) | (int(p[c] > hi[c]) << (2 * c + 1));
+  return std::uint8_t(code);
+}
+}  // namespace detail
+
 /// @brief A cutting edge (a segment, the blade's edge) swept over one step: from `start_a` -
 /// `start_b` to `end_a` - `end_b` (m). It cuts what crosses the ruled surface between the two
 /// segments (two triangles: start_a, start_b, end_b and start_a, end_b, end_a).
@@ -77,10 +110,10 @@ template <typename Scalar>
 
 /// @brief What a cut or a tear changed.
 struct TopologyChange {
-  Index links_cut{0};         ///< Links the blade crossed.
-  Index tetrahedra_cut{0};    ///< Tetrahedra with an edge the blade crossed.
-  Index links_torn{0};        ///< Links strained past their tear strain.
-  Index tetrahedra_torn{0};   ///< Tetrahedra that shared a torn link.
+  Index links_cut{0};        ///< Links the blade crossed.
+  Index tetrahedra_cut{0};   ///< Tetrahedra with an edge the blade crossed.
+  Index links_torn{0};       ///< Links strained past their tear strain.
+  Index tetrahedra_torn{0};  ///< Tetrahedra that shared a torn link.
   /// Links, and tetrahedra, broken in the model but not recorded in the lists below because they
   /// were full (never happens with the capacity refresh() reserves; kept for safety).
   Index unrecorded{0};
@@ -112,8 +145,9 @@ struct TopologyChange {
 ///
 /// refresh() (allocates) builds which tetrahedra share each link, the links' tear strains (the
 /// smallest of the link's own SphereModel::tear_strain() and its two nodes' regions'
-/// Material::tear_strain; writable per link afterwards) and room for the event lists; cut() and tear() then allocate nothing, never
-/// throw, and are deterministic (links and tetrahedra are visited in index order).
+/// Material::tear_strain; writable per link afterwards) and room for the event lists; cut() and
+/// tear() then allocate nothing, never throw, and are deterministic (links and tetrahedra are
+/// visited in index order).
 template <typename Scalar>
 class TopologyEditor {
  public:
@@ -130,21 +164,22 @@ class TopologyEditor {
     const auto region = model.node_regions();
     m_tear.resize(L);
     for (Index l = 0; l < L; ++l)
-      m_tear[l] = std::min({model.tear_strain()[l],
-                            model.region(region[links(l, 0)]).material.tear_strain,
-                            model.region(region[links(l, 1)]).material.tear_strain});
+      m_tear[l] =
+          std::min({model.tear_strain()[l], model.region(region[links(l, 0)]).material.tear_strain,
+                    model.region(region[links(l, 1)]).material.tear_strain});
     // The tetrahedra at each link (CSR): match the tetrahedra's edges to the links.
     std::vector<std::pair<std::uint64_t, Index>> keys;  // (edge key, tetrahedron)
     keys.reserve(6 * std::size_t(T));
     const auto tets = model.tetrahedra();
     for (Index t = 0; t < T; ++t)
       for (int a = 0; a < 4; ++a)
-        for (int b = a + 1; b < 4; ++b) keys.emplace_back(edge_key(tets(t, a), tets(t, b)), t);
+        for (int b = a + 1; b < 4; ++b)
+          keys.emplace_back(detail::edge_key(tets(t, a), tets(t, b)), t);
     std::sort(keys.begin(), keys.end());
     m_link_tet_start.assign(std::size_t(L) + 1, 0);
     m_link_tets.clear();
     for (Index l = 0; l < L; ++l) {
-      const std::uint64_t key = edge_key(links(l, 0), links(l, 1));
+      const std::uint64_t key = detail::edge_key(links(l, 0), links(l, 1));
       auto it = std::lower_bound(keys.begin(), keys.end(), std::make_pair(key, Index(-1)));
       for (; it != keys.end() && it->first == key; ++it) m_link_tets.push_back(it->second);
       m_link_tet_start[std::size_t(l) + 1] = Index(m_link_tets.size());
@@ -171,8 +206,7 @@ class TopologyEditor {
     m_labelled = false;
     m_tet_continuum.resize(std::size_t(T));
     for (Index t = 0; t < T; ++t)
-      m_tet_continuum[std::size_t(t)] =
-          model.region(region[tets(t, 0)]).law == ForceLaw::continuum;
+      m_tet_continuum[std::size_t(t)] = model.region(region[tets(t, 0)]).law == ForceLaw::continuum;
     // Each node's links and continuum tetrahedra (CSR), for the pieces' searches.
     std::vector<std::pair<Index, Index>> at;
     at.reserve(2 * std::size_t(L));
@@ -180,12 +214,12 @@ class TopologyEditor {
       at.emplace_back(links(l, 0), l);
       at.emplace_back(links(l, 1), l);
     }
-    csr(at, model.num_nodes(), m_node_link_start, m_node_links);
+    detail::build_csr(at, model.num_nodes(), m_node_link_start, m_node_links);
     at.clear();
     for (Index t = 0; t < T; ++t)
       if (m_tet_continuum[std::size_t(t)])
         for (int k = 0; k < 4; ++k) at.emplace_back(tets(t, k), t);
-    csr(at, model.num_nodes(), m_node_tet_start, m_node_tets);
+    detail::build_csr(at, model.num_nodes(), m_node_tet_start, m_node_tets);
   }
 
   /// @brief Counts the pieces of the model from scratch, joined by the links with `force_link`
@@ -326,14 +360,8 @@ class TopologyEditor {
     const auto x = model.positions();
     // Each node's side of the blade's bounding box (Cohen and Sutherland's outcodes): a segment
     // whose two ends share an outside side cannot reach the blade.
-    for (Index i = 0; i < model.num_nodes(); ++i) {
-      std::uint8_t code = 0;
-      for (int c = 0; c < 3; ++c) {
-        code = std::uint8_t(code | (int(x(i, c) < lo[c]) << (2 * c)) |
-                            (int(x(i, c) > hi[c]) << (2 * c + 1)));
-      }
-      m_outcode[std::size_t(i)] = code;
-    }
+    for (Index i = 0; i < model.num_nodes(); ++i)
+      m_outcode[std::size_t(i)] = detail::outcode<Scalar>(x.row(i), lo, hi);
     const auto links = model.links();
     auto intact = model.link_intact();
     auto crosses = [&](Index i, Index j) {
@@ -427,24 +455,11 @@ class TopologyEditor {
     m_tears = !m_tearable.empty();
   }
 
-  static void csr(std::vector<std::pair<Index, Index>>& pairs, Index rows,
-                  std::vector<Index>& start, std::vector<Index>& items) {
-    std::sort(pairs.begin(), pairs.end());
-    start.assign(std::size_t(rows) + 1, 0);
-    items.clear();
-    items.reserve(pairs.size());
-    for (const auto& [r, item] : pairs) {
-      ++start[std::size_t(r) + 1];
-      items.push_back(item);
-    }
-    for (Index r = 0; r < rows; ++r) start[std::size_t(r) + 1] += start[std::size_t(r)];
-  }
-
   // Whether a and b (one piece until now) are still joined; if not, the side whose search ran out
   // first becomes a new piece. Two breadth-first fronts, expanded one node each in turn. Returns
   // 0 (joined), 1 (a's side became a new piece) or 2 (b's side did).
-  int split(const SphereModel<Scalar>& model, const std::vector<std::uint8_t>& force_link,
-            Index a, Index b) noexcept {
+  int split(const SphereModel<Scalar>& model, const std::vector<std::uint8_t>& force_link, Index a,
+            Index b) noexcept {
     if (a == b || m_label[std::size_t(a)] != m_label[std::size_t(b)]) return 0;
     if (m_generation > std::numeric_limits<std::uint32_t>::max() - 4) {
       std::fill(m_seen.begin(), m_seen.end(), std::uint32_t(0));
@@ -517,10 +532,6 @@ class TopologyEditor {
     m_loose += Index(held == 0) + Index(!old_loose && m_label_fixed[std::size_t(old)] == 0);
   }
 
-  static std::uint64_t edge_key(Index a, Index b) noexcept {
-    if (a > b) std::swap(a, b);
-    return (std::uint64_t(std::uint32_t(a)) << 32) | std::uint32_t(b);
-  }
   [[nodiscard]] bool sized_for(const SphereModel<Scalar>& model) const noexcept {
     return model.num_links() == m_num_links && model.num_tetrahedra() == m_num_tetrahedra;
   }
@@ -540,11 +551,11 @@ class TopologyEditor {
   Index m_num_links{0}, m_num_tetrahedra{0};
   ScalarArray<Scalar> m_tear;
   bool m_tears{false};
-  std::vector<Index> m_tearable;        // links with a finite tear strain, in index order
+  std::vector<Index> m_tearable;       // links with a finite tear strain, in index order
   std::vector<Scalar> m_tear_length2;  // per tearable link: (l0 (1 + tear strain))^2
   std::vector<Index> m_link_tet_start, m_link_tets;
   std::vector<Index> m_broken_links, m_removed_tetrahedra;
-  std::vector<Index> m_parent;               // union-find over the nodes (count_pieces)
+  std::vector<Index> m_parent;  // union-find over the nodes (count_pieces)
   // The pieces: a label per node, fixed nodes per label, the counts; the nodes' links and
   // continuum tetrahedra and the two fronts of update_pieces()' searches.
   std::vector<Index> m_label, m_label_fixed;
@@ -555,7 +566,7 @@ class TopologyEditor {
   std::vector<Index> m_front_a, m_front_b;
   std::vector<std::uint32_t> m_seen;
   std::uint32_t m_generation{0};
-  std::vector<std::uint8_t> m_outcode;      // per node: its side of the blade's box (cut)
+  std::vector<std::uint8_t> m_outcode;        // per node: its side of the blade's box (cut)
   std::vector<std::uint8_t> m_tet_continuum;  // per tetrahedron: in a continuum region
 };
 

@@ -73,21 +73,22 @@ struct PenaltyContact {
 
 /// @brief A node held to a moving point (a grasper's jaw, collision::Grasper): a bilateral
 /// spring-damper taken into the implicit solve, \f$\mathbf{F} = k(\mathbf{p}(t) - \mathbf{x}) +
-/// c(\dot{\mathbf{p}} - \mathbf{v})\f$ with \f$\mathbf{p}(t) = \mathbf{p}_0 + t\,\dot{\mathbf{p}}\f$,
-/// t the contact time (ForceModel::contact_time()). Unlike a PenaltyContact it pulls as well as
-/// pushes (docs/physics.md section 12).
+/// c(\dot{\mathbf{p}} - \mathbf{v})\f$ with \f$\mathbf{p}(t) = \mathbf{p}_0 +
+/// t\,\dot{\mathbf{p}}\f$, t the contact time (ForceModel::contact_time()). Unlike a PenaltyContact
+/// it pulls as well as pushes (docs/physics.md section 12).
 template <typename Scalar>
 struct HeldNode {
-  Index node{-1};        ///< The sphere held.
-  Index instrument{-1};  ///< Who holds it (for the wrench), or -1.
-  Vector3<Scalar> target{Vector3<Scalar>::Zero()};           ///< \f$\mathbf{p}_0\f$ (m).
+  Index node{-1};                                   ///< The sphere held.
+  Index instrument{-1};                             ///< Who holds it (for the wrench), or -1.
+  Vector3<Scalar> target{Vector3<Scalar>::Zero()};  ///< \f$\mathbf{p}_0\f$ (m).
   Vector3<Scalar> target_velocity{Vector3<Scalar>::Zero()};  ///< \f$\dot{\mathbf{p}}\f$ (m/s).
-  Scalar stiffness{0};  ///< k (N/m), > 0.
-  Scalar damping{0};    ///< c (N s/m), >= 0.
+  Scalar stiffness{0};                                       ///< k (N/m), > 0.
+  Scalar damping{0};                                         ///< c (N s/m), >= 0.
   /// Force on the node (N) at the end of the last accepted step (ForceModel::finish_contacts).
   Vector3<Scalar> force{Vector3<Scalar>::Zero()};
   /// The force at the positions and velocities x, v (row-major `|V| x 3`) and contact time t.
-  [[nodiscard]] Vector3<Scalar> force_at(const Scalar* x, const Scalar* v, Scalar t) const noexcept {
+  [[nodiscard]] Vector3<Scalar> force_at(const Scalar* x, const Scalar* v,
+                                         Scalar t) const noexcept {
     const Scalar* xi = x + 3 * std::ptrdiff_t(node);
     const Scalar* vi = v + 3 * std::ptrdiff_t(node);
     const Vector3<Scalar> p = target + t * target_velocity;
@@ -357,8 +358,8 @@ class ForceModel {
   Index m_num_held{0};
   Scalar m_contact_time{0};
   bool m_contacts_linearised{false};       // the last step was implicit (contact_work's accounting)
-  std::vector<std::uint8_t> m_force_link;      // per link: carries force
-  std::vector<std::uint8_t> m_continuum_link;  // per link: inside a continuum region
+  std::vector<std::uint8_t> m_force_link;  // per link: carries force
+  std::vector<std::uint8_t> m_continuum_link;           // per link: inside a continuum region
   std::vector<std::pair<Index, Index>> m_force_ranges;  // force links, whatever moves
   detail::ContinuumTerm<Scalar> m_continuum;
   std::vector<Scalar> m_element_force;  // |V| x 3 scratch of prepare_implicit

@@ -40,9 +40,10 @@ py::array_t<T> view(T* data, py::ssize_t rows, py::ssize_t cols, py::handle owne
 /// `allow_infinity`).
 inline void require_non_negative(Scalar x, const char* what, bool allow_infinity = false) {
   if (!(x >= 0) || (!allow_infinity && !std::isfinite(x)))
-    throw Error("", what,
-                "is " + std::to_string(x) + "; it must be " +
-                    (allow_infinity ? "non-negative (infinity allowed)" : "finite and non-negative"));
+    throw Error(
+        "", what,
+        "is " + std::to_string(x) + "; it must be " +
+            (allow_infinity ? "non-negative (infinity allowed)" : "finite and non-negative"));
 }
 
 /// Raises fsm.Error naming `what` unless `d` is a finite, non-zero direction.

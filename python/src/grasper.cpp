@@ -16,8 +16,8 @@ GrasperOptions(jaw_length=0.012, jaw_width=0.004, grip_angle=0.1, release_angle=
 
 Lengths in m, angles in rad, stiffness in N/m and damping in N s/m per held sphere. In the
 grasper's frame the jaws hinge at the origin, reach along +x and open in the x-z plane.)")
-      .def(py::init([](Scalar length, Scalar width, Scalar grip, Scalar release, Scalar k,
-                       Scalar c, Index max_held, Scalar margin) {
+      .def(py::init([](Scalar length, Scalar width, Scalar grip, Scalar release, Scalar k, Scalar c,
+                       Index max_held, Scalar margin) {
              O o;
              o.jaw_length = length;
              o.jaw_width = width;

@@ -151,12 +151,10 @@ option.)")
            "Cuts the links and tetrahedra the Blade swept through at the current positions; "
            "returns a TopologyChange (`rejected` for an invalid blade: nothing changed).")
       .def_property_readonly(
-          "broken_links",
-          [](const Sim& sim) { return sim.topology().broken_links(); },
+          "broken_links", [](const Sim& sim) { return sim.topology().broken_links(); },
           "Links broken by the last cut or step's tear (a list of indices).")
       .def_property_readonly(
-          "removed_tetrahedra",
-          [](const Sim& sim) { return sim.topology().removed_tetrahedra(); },
+          "removed_tetrahedra", [](const Sim& sim) { return sim.topology().removed_tetrahedra(); },
           "Tetrahedra removed by the last cut or step's tear (a list of indices).")
       .def_property(
           "tear_strains",

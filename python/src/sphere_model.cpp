@@ -188,8 +188,7 @@ writing masses, fixed flags or link constants in place, call Simulation.refresh(
                                   true);
       },
       "|T|, 1 = holds, 0 = cut or torn (a read-only view)");
-  c.def_property_readonly("num_broken_links", &Model::num_broken_links,
-                          "links cut or torn so far");
+  c.def_property_readonly("num_broken_links", &Model::num_broken_links, "links cut or torn so far");
   c.def_property_readonly("num_removed_tetrahedra", &Model::num_removed_tetrahedra,
                           "tetrahedra cut or torn so far");
   c.def("restore_topology", &Model::restore_topology,

@@ -472,8 +472,7 @@ StoredLinks read_links(Reader& r, std::uint32_t version) {
   r.matrix(l.switch_strain, "switch strain");
   if (version >= 4) r.matrix(l.tear_strain, "tear strain");
   const Eigen::Index count = l.links.rows();
-  if (version < 4)
-    l.tear_strain.setConstant(count, std::numeric_limits<double>::infinity());
+  if (version < 4) l.tear_strain.setConstant(count, std::numeric_limits<double>::infinity());
   const std::pair<const char*, Eigen::Index> rows[] = {
       {"rest lengths", l.rest_lengths.rows()},
       {"stiffness", l.stiffness.rows()},

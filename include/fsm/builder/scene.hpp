@@ -3,9 +3,9 @@
 /// @file build/scene.hpp
 /// @brief The scene description the builder reads (JSON; schema in docs/scene.md), in SI units.
 
+#include <limits>
 #include <memory>
 #include <optional>
-#include <limits>
 #include <string>
 #include <vector>
 

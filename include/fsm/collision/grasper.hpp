@@ -39,15 +39,14 @@ struct GrasperOptions {
   /// jaws (the jaws close on its surface, so about the spheres' spacing or less: a larger margin
   /// picks up the neighbouring tissue too).
   Scalar margin{Scalar(0.001)};
-  Index max_held{64};           ///< At most this many spheres held (the nearest the jaws' plane).
+  Index max_held{64};  ///< At most this many spheres held (the nearest the jaws' plane).
 
   /// @brief fsm::Error ("grasper", reason) for a value out of range.
   void validate() const {
     auto bad = [](const std::string& why) { throw Error("", "grasper", why); };
     if (!(jaw_length > 0 && std::isfinite(jaw_length))) bad("jaw_length must be positive");
     if (!(jaw_width > 0 && std::isfinite(jaw_width))) bad("jaw_width must be positive");
-    if (!(grip_angle > 0 && grip_angle < Scalar(3.1)))
-      bad("grip_angle must be in (0, 3.1) rad");
+    if (!(grip_angle > 0 && grip_angle < Scalar(3.1))) bad("grip_angle must be in (0, 3.1) rad");
     if (!(release_angle > grip_angle && release_angle < Scalar(3.1)))
       bad("release_angle must be above grip_angle and below 3.1 rad");
     if (!(stiffness > 0 && std::isfinite(stiffness))) bad("stiffness must be positive");
@@ -59,8 +58,8 @@ struct GrasperOptions {
 
 /// @brief What a Grasper::update() did.
 struct GraspEvent {
-  Index grasped{0};   ///< Spheres gripped by this update (the jaws closed past grip_angle).
-  Index released{0};  ///< Spheres let go by this update (the jaws opened past release_angle).
+  Index grasped{0};     ///< Spheres gripped by this update (the jaws closed past grip_angle).
+  Index released{0};    ///< Spheres let go by this update (the jaws opened past release_angle).
   bool invalid{false};  ///< The pose, velocities or angle were not finite: nothing changed.
 };
 
@@ -92,8 +91,8 @@ class Grasper {
   }
 
   /// @brief Moves the jaws and opens or closes them; grips or releases; writes the held nodes
-  /// into `forces` (its held list is cleared first). `velocity` and `angular_velocity` (rad/s, world)
-  /// move the jaws through the coming step.
+  /// into `forces` (its held list is cleared first). `velocity` and `angular_velocity` (rad/s,
+  /// world) move the jaws through the coming step.
   GraspEvent update(const SphereModel<Scalar>& model, ForceModel<Scalar>& forces,
                     const Pose<Scalar>& pose, const Vector3<Scalar>& velocity,
                     const Vector3<Scalar>& angular_velocity, Scalar opening) noexcept {

@@ -333,13 +333,14 @@ class ContinuumTerm {
       m_removed[std::size_t(e)] = 1;
       for (std::size_t c = 0; c < 4; ++c) {
         const auto a = std::size_t(m_tets[4 * std::size_t(e) + c]);
-        m_node_volume[a] = --m_node_count[a] > 0 ? m_node_volume[a] - m_volume[std::size_t(e)] / 4
-                                                 : Scalar(0);
+        m_node_volume[a] =
+            --m_node_count[a] > 0 ? m_node_volume[a] - m_volume[std::size_t(e)] / 4 : Scalar(0);
       }
       for (std::size_t c = 0; c < 6; ++c) {
         const auto edge = std::size_t(m_element_edge[12 * std::size_t(e) + 2 * c]);
         const auto part = std::size_t(m_element_edge[12 * std::size_t(e) + 2 * c + 1]);
-        m_edge_k[edge] = --m_edge_count[edge] > 0 ? m_edge_k[edge] - m_edge_part_k[part] : Scalar(0);
+        m_edge_k[edge] =
+            --m_edge_count[edge] > 0 ? m_edge_k[edge] - m_edge_part_k[part] : Scalar(0);
       }
     }
   }
@@ -385,7 +386,6 @@ class ContinuumTerm {
     }
     return removed;
   }
-
 
   [[nodiscard]] bool empty() const noexcept { return m_volume.empty(); }
   /// sum over elements of 6 C10 V (about E V, J): the energy scale of a unit strain.
@@ -468,10 +468,10 @@ class ContinuumTerm {
       const Index* id = &m_tets[4 * t];
       const Scalar* g = &m_grad[12 * t];
       const Scalar p =
-          m_removed[t] ? Scalar(0)
-                       : (volume_now[id[0]] + volume_now[id[1]] + volume_now[id[2]] +
-                          volume_now[id[3]]) /
-                             Scalar(4);
+          m_removed[t]
+              ? Scalar(0)
+              : (volume_now[id[0]] + volume_now[id[1]] + volume_now[id[2]] + volume_now[id[3]]) /
+                    Scalar(4);
       m_pressure[t] = p;
       for (int k = 0; k < 4; ++k) {
         Scalar* q = f + 3 * std::ptrdiff_t(id[k]);
@@ -948,16 +948,16 @@ class ContinuumTerm {
   }
 
   Index m_num_nodes{0};
-  std::vector<Index> m_tets;                                   // 4 per element
+  std::vector<Index> m_tets;            // 4 per element
   std::vector<Index> m_element_tet;     // per element: its tetrahedron in the model
   std::vector<std::uint8_t> m_removed;  // per element: cut or torn (carries nothing)
   std::vector<Scalar> m_node_volume_whole, m_edge_k_whole;  // before any removal
   std::vector<Index> m_tet_element;   // per model tetrahedron: its element, or -1
   std::vector<Index> m_element_edge;  // 12 per element: (edge, share in the edge's CSR) x 6
-  std::vector<Index> m_node_count, m_edge_count;  // intact elements at each node, on each edge
-  std::vector<Scalar> m_dm_inv;                                // 9 per element, column-major D_m^-1
-  std::vector<Scalar> m_volume;                                // rest volume per element (m^3)
-  std::vector<Scalar> m_c10, m_c10_large, m_q_switch;          // per element
+  std::vector<Index> m_node_count, m_edge_count;       // intact elements at each node, on each edge
+  std::vector<Scalar> m_dm_inv;                        // 9 per element, column-major D_m^-1
+  std::vector<Scalar> m_volume;                        // rest volume per element (m^3)
+  std::vector<Scalar> m_c10, m_c10_large, m_q_switch;  // per element
   std::vector<Scalar> m_node_volume, m_node_bulk, m_node_tau;  // per node
   std::vector<Index> m_edges;                                  // 2 per edge
   std::vector<Scalar> m_edge_k, m_edge_tau;                    // per edge (N/m, s)

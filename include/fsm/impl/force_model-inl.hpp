@@ -236,8 +236,7 @@ bool ForceModel<Scalar>::add_held(const HeldNode<Scalar>& held) noexcept {
   if (m_num_held >= Index(m_held.size())) return false;
   if (held.node < 0 || held.node >= m_num_nodes || !(held.stiffness > Scalar(0)) ||
       !std::isfinite(held.stiffness) || !(held.damping >= Scalar(0)) ||
-      !std::isfinite(held.damping) || !held.target.allFinite() ||
-      !held.target_velocity.allFinite())
+      !std::isfinite(held.damping) || !held.target.allFinite() || !held.target_velocity.allFinite())
     return false;
   m_held[std::size_t(m_num_held++)] = held;
   return true;
@@ -329,7 +328,8 @@ void ForceModel<Scalar>::add_contact_linearisation(const SphereModel<Scalar>& mo
   for (Index k = 0; k < m_num_held; ++k) {
     const HeldNode<Scalar>& hn = m_held[std::size_t(k)];
     if (m_immobile[std::size_t(hn.node)]) continue;
-    for (int a = 0; a < 3; ++a) rhs[3 * hn.node + a] += h * h * hn.stiffness * hn.target_velocity[a];
+    for (int a = 0; a < 3; ++a)
+      rhs[3 * hn.node + a] += h * h * hn.stiffness * hn.target_velocity[a];
   }
 }
 
@@ -437,7 +437,7 @@ void ForceModel<Scalar>::update_topology(const SphereModel<Scalar>& model) noexc
   for (std::size_t l = 0; l < std::size_t(L); ++l)
     m_force_link[l] = std::uint8_t(intact[l] & (m_continuum_link[l] ^ 1));
   m_continuum.apply_topology(model.tetrahedron_intact().data());
-  m_base_h = Scalar(-1);  // the kept rhs and diagonal of prepare_implicit() are stale
+  m_base_h = Scalar(-1);   // the kept rhs and diagonal of prepare_implicit() are stale
   update_mobility(model);  // and the ranges
 }
 
@@ -476,8 +476,8 @@ void ForceModel<Scalar>::update_ranges(const SphereModel<Scalar>& model) noexcep
   Index force_begin = -1, active_begin = -1;
   for (Index l = 0; l < L; ++l) {
     const bool force = m_force_link[std::size_t(l)] != 0;
-    const bool active = force && !(m_immobile[std::size_t(ij[2 * l])] &&
-                                   m_immobile[std::size_t(ij[2 * l + 1])]);
+    const bool active =
+        force && !(m_immobile[std::size_t(ij[2 * l])] && m_immobile[std::size_t(ij[2 * l + 1])]);
     if (force && force_begin < 0) force_begin = l;
     if (!force && force_begin >= 0) {
       m_force_ranges.emplace_back(force_begin, l);

@@ -76,7 +76,8 @@ Index SphereModel<Scalar>::num_broken_links() const noexcept {
 
 template <typename Scalar>
 Index SphereModel<Scalar>::num_removed_tetrahedra() const noexcept {
-  return Index(std::count(m_tetrahedron_intact.begin(), m_tetrahedron_intact.end(), std::uint8_t(0)));
+  return Index(
+      std::count(m_tetrahedron_intact.begin(), m_tetrahedron_intact.end(), std::uint8_t(0)));
 }
 
 template <typename Scalar>
@@ -396,12 +397,12 @@ SphereModel<Other> SphereModel<Scalar>::cast() const {
   SphereModel<Other> out;
   for (const auto& r : m_regions) {
     const auto& m = r.material;
-    out.m_regions.push_back({r.name,
-                             Material<Other>{Other(m.density), Other(m.youngs_modulus),
-                                             Other(m.viscosity), Other(m.large_strain_modulus),
-                                             Other(m.switch_strain), Other(m.poisson_ratio),
-                                             Other(m.tear_strain)},
-                             r.law});
+    out.m_regions.push_back(
+        {r.name,
+         Material<Other>{Other(m.density), Other(m.youngs_modulus), Other(m.viscosity),
+                         Other(m.large_strain_modulus), Other(m.switch_strain),
+                         Other(m.poisson_ratio), Other(m.tear_strain)},
+         r.law});
   }
   auto conv = [](const std::vector<Scalar>& v) { return std::vector<Other>(v.begin(), v.end()); };
   out.m_position = conv(m_position);
