@@ -83,6 +83,7 @@ UNIT_TESTS=(test_voigt_link test_material test_sphere_model test_tetrahedral_mes
   test_stability test_integrators test_simulation test_skinning test_model_file test_shapes
   test_triangle_bvh test_volume_term test_contact test_haptic_device test_servo_loop
   test_malformed_models test_no_allocation test_continuum test_vtk_export test_worker_pool
+  test_cutting test_grasper
   touch/test_touch_device)
 THREAD_TESTS=(test_servo_loop test_haptic_device test_simulation test_worker_pool
   touch/test_touch_device)
