@@ -65,6 +65,14 @@ SphereModel<Scalar> two_spheres(Scalar m, Scalar k, Scalar kd, Scalar l0 = Scala
   return model;
 }
 
+/// Fixes every node whose rest coordinate along `axis` is below `bound` (m): with the default,
+/// the face of a block() at the origin.
+template <typename Scalar>
+void fix_below(SphereModel<Scalar>& model, int axis, Scalar bound = Scalar(1e-9)) {
+  for (Index i = 0; i < model.num_nodes(); ++i)
+    if (model.rest_positions()(i, axis) < bound) model.set_fixed(i);
+}
+
 /// A block of the Freudenthal lattice as a model.
 template <typename Scalar>
 SphereModel<Scalar> block(Eigen::Vector3i cells, Scalar spacing,

@@ -58,8 +58,7 @@ TEST(Blade, ZeroLengthOrNonFiniteIsAnError) {
 SphereModel<double> held_bar(ForceLaw law) {
   SphereModel<double> model = test::block<double>({6, 2, 2}, 0.005);
   model.set_region_law(0, law);
-  for (Index i = 0; i < model.num_nodes(); ++i)
-    if (model.rest_positions()(i, 0) < 1e-9) model.set_fixed(i);
+  test::fix_below(model, 0);
   return model;
 }
 
@@ -398,8 +397,7 @@ TEST(Tear, ABarPulledByALoadTearsInsideTheStep) {
     mat.tear_strain = 0.3;
     SphereModel<double> model = test::block<double>({6, 1, 1}, 0.005, mat);
     model.set_region_law(0, law);
-    for (Index i = 0; i < model.num_nodes(); ++i)
-      if (model.rest_positions()(i, 0) < 1e-9) model.set_fixed(i);
+    test::fix_below(model, 0);
     Simulation<double>::Options o;
     o.forces.gravity.setZero();
     o.forces.drag = 5;
@@ -437,8 +435,7 @@ TEST(Topology, IncrementalUpdatesMatchARebuild) {
   for (const ForceLaw law : {ForceLaw::links, ForceLaw::continuum}) {
     SphereModel<double> model = test::block<double>({5, 3, 3}, 0.005);
     model.set_region_law(0, law);
-    for (Index i = 0; i < model.num_nodes(); ++i)
-      if (model.rest_positions()(i, 0) < 1e-9) model.set_fixed(i);
+    test::fix_below(model, 0);
     Simulation<double> sim(model);
     std::mt19937 rng(11);
     std::uniform_real_distribution<double> u(0, 1);

@@ -16,8 +16,7 @@ using V3 = Vector3<double>;
 SphereModel<double> block(ForceLaw law) {
   SphereModel<double> model = fsm::test::block<double>({4, 4, 2}, 0.005);
   model.set_region_law(0, law);
-  for (Index i = 0; i < model.num_nodes(); ++i)
-    if (model.rest_positions()(i, 2) < 1e-9) model.set_fixed(i);
+  fsm::test::fix_below(model, 2);
   return model;
 }
 
@@ -124,6 +123,35 @@ TEST(Grasp, HeldNodesEnterTheAssembledSolversToo) {
   }
   EXPECT_TRUE(fsm::test::matrices_near(result[0], result[1], 1e-6));
   EXPECT_GT(result[0].cwiseAbs().maxCoeff(), 1e-3);
+}
+
+// An explicit scheme cannot take the ties' stiffness at its step: they are softened to its limit
+// (as penalty contacts are), reported, and the held block stays stable.
+TEST(Grasp, ExplicitStepsSoftenTheTies) {
+  Simulation<double>::Options o;
+  o.integrator = "symplectic_euler";
+  o.forces.gravity.setZero();
+  o.forces.drag = 5;
+  Simulation<double> sim(block(ForceLaw::links), o);
+  GrasperOptions<double> stiff;
+  stiff.stiffness = 1e6;  // far past m / 2h^2 for any step the block allows
+  Grasper<double> grasper(sim.model(), sim.forces(), stiff, 0.6);
+  grasper.update(sim.model(), sim.forces(), jaws_at(0), V3::Zero(), V3::Zero(), 0.6);
+  const GraspEvent e =
+      grasper.update(sim.model(), sim.forces(), jaws_at(0), V3::Zero(), V3::Zero(), 0.05);
+  ASSERT_GT(e.grasped, 0);
+  const double h = 0.5 * sim.stable_time_step();
+  for (int s = 0; s < 400; ++s) {  // lifting 1 um a step
+    grasper.update(sim.model(), sim.forces(), jaws_at(1e-6 * s), V3(0, 0, 1e-6 / h), V3::Zero(),
+                   0.05);
+    const StepReport<double> r = sim.step(h);
+    ASSERT_TRUE(r.advanced()) << s;
+    EXPECT_EQ(r.softened_contacts, e.grasped) << s;
+  }
+  for (Index k = 0; k < sim.forces().num_held(); ++k)
+    EXPECT_LE(sim.forces().held()[k].stiffness,
+              0.5 * sim.model().masses()[sim.forces().held()[k].node] / (h * h) * (1 + 1e-12));
+  EXPECT_TRUE(sim.model().positions().allFinite());
 }
 
 TEST(Grasp, BadInput) {

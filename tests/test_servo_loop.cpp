@@ -36,8 +36,7 @@ struct Scene {
   }
   static SphereModel<double> make_block(double E) {
     SphereModel<double> m = block<double>({4, 4, 2}, 0.005, tissue<double>(E));
-    for (Index i = 0; i < m.num_nodes(); ++i)
-      if (m.rest_positions()(i, 2) < 1e-9) m.set_fixed(i);
+    fix_below(m, 2);
     return m;
   }
   static Simulation<double>::Options options(const std::string& integrator) {

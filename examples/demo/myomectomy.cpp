@@ -48,6 +48,7 @@ constexpr double k_pull_start = 5.5, k_pull_end = 8.5, k_end = 9.5;
 constexpr double k_open = 0.8, k_closed = 0.05;  // jaw angles (rad)
 constexpr double k_blade_half = 0.004;           // the blade's edge: 8 mm along the instrument
 constexpr double k_pull = 0.03;                  // the device pulls 30 mm
+constexpr double k_step = 1e-3;                  // the servo loop's period (s)
 
 enum Stage { before = 0, incised, half_out, free_fibroid, num_stages };
 const char* const k_stage_names[num_stages] = {"before", "incised", "half_out", "free"};
@@ -95,6 +96,8 @@ class MyomectomyTool final : public haptics::InstrumentAction {
   void before_step(Simulation<double>& sim, const collision::Pose<double>& pose, const V3& velocity,
                    double t) noexcept override {
     m_pose = pose;
+    // The jaws' force at the end of the last step (update() below rewrites the held nodes).
+    m_last_wrench = m_grasper.wrench(sim.forces(), k_step).force;
     // The blade: its edge along the instrument's axis (local x), swept from the last step's.
     const V3 a = pose.to_world(V3(-k_blade_half, 0, 0));
     const V3 b = pose.to_world(V3(k_blade_half, 0, 0));
@@ -152,9 +155,7 @@ class MyomectomyTool final : public haptics::InstrumentAction {
 
   [[nodiscard]] collision::Wrench<double> wrench(
       const Simulation<double>& sim) const noexcept override {
-    const collision::Wrench<double> w = m_grasper.wrench(sim.forces(), 1e-3);
-    m_last_wrench = w.force;
-    return w;
+    return m_grasper.wrench(sim.forces(), k_step);
   }
 
   [[nodiscard]] const StageCapture& stage(Stage s) const { return m_stages[s]; }
@@ -200,7 +201,7 @@ class MyomectomyTool final : public haptics::InstrumentAction {
   Index m_broken{0}, m_torn_links{0}, m_grasped{0};
   Index m_capsule_intact{0}, m_capsule_after_incision{-1};
   double m_free_time{-1};
-  mutable V3 m_last_wrench{V3::Zero()};
+  V3 m_last_wrench{V3::Zero()};
   std::array<StageCapture, num_stages> m_stages;
   std::vector<float> m_jaw_time, m_jaw_force;
   std::vector<Index> m_capsule_left;
@@ -258,7 +259,7 @@ int run_myomectomy(const TissueModel<double>& model, const ScenarioOptions& opt)
   ImplicitEulerIntegrator<double>::Options io;
   io.tolerance = 1e-3;
   sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
-  for (int s = 0; s < 1000; ++s) (void)sim.step(1e-3);
+  for (int s = 0; s < 1000; ++s) (void)sim.step(k_step);
   // The geometry at the settled state: the fibroid's axis points from the body's centre to its.
   const Positions<double> x0 = sim.model().positions();
   const V3 cf = centre(x0, fibroid), cb = centre(x0, body);

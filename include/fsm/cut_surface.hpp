@@ -90,7 +90,6 @@ class CutSurface {
         m_neighbour[std::size_t(tri[k].second)] = tri[k + 1].second / 4;
         m_neighbour[std::size_t(tri[k + 1].second)] = tri[k].second / 4;
       }
-    m_tets.assign(tets.data(), tets.data() + 4 * std::size_t(T));
     m_wall_slot.assign(4 * std::size_t(T), -1);
     m_walls.resize(4 * Index(T), 3);
     m_wall_owner.assign(4 * std::size_t(T), -1);
@@ -160,7 +159,7 @@ class CutSurface {
         if (n < 0 || !tet_intact[n]) continue;
         // The neighbour's face opposite t becomes a wall.
         for (int j = 0; j < 4; ++j)
-          if (m_neighbour[4 * std::size_t(n) + std::size_t(j)] == t) add_wall(n, j);
+          if (m_neighbour[4 * std::size_t(n) + std::size_t(j)] == t) add_wall(model, n, j);
       }
     }
   }
@@ -195,10 +194,10 @@ class CutSurface {
     m_faces.row(f).setConstant(m_rest_faces(f, 0));
   }
   // Face k (0-3, opposite node k) of tetrahedron t as a wall, oriented out of t.
-  void add_wall(Index t, int k) noexcept {
+  void add_wall(const SphereModel<Scalar>& model, Index t, int k) noexcept {
     const std::size_t key = 4 * std::size_t(t) + std::size_t(k);
     if (m_wall_slot[key] >= 0) return;
-    const Index* v = &m_tets[4 * std::size_t(t)];
+    const Index* v = model.tetrahedra().data() + 4 * std::ptrdiff_t(t);
     // A positively oriented tetrahedron's faces, outward: (1 2 3), (0 3 2), (0 1 3), (0 2 1).
     static constexpr int face[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
     const Index slot = m_num_walls++;
@@ -221,7 +220,6 @@ class CutSurface {
   std::vector<Index> m_link_vertex_start, m_link_vertices;
   std::vector<Index> m_vertex_face_start, m_vertex_faces;
   std::vector<Index> m_neighbour;  // per (tetrahedron, face): the tetrahedron across, or -1
-  std::vector<Index> m_tets;
   std::vector<Index> m_wall_slot, m_wall_owner;
   FaceArray m_walls;
   Index m_num_walls{0};

@@ -114,9 +114,6 @@ struct TopologyChange {
   Index tetrahedra_cut{0};   ///< Tetrahedra with an edge the blade crossed.
   Index links_torn{0};       ///< Links strained past their tear strain.
   Index tetrahedra_torn{0};  ///< Tetrahedra that shared a torn link.
-  /// Links, and tetrahedra, broken in the model but not recorded in the lists below because they
-  /// were full (never happens with the capacity refresh() reserves; kept for safety).
-  Index unrecorded{0};
   /// After a change: the pieces the model is in (joined by links that carry force or by intact
   /// continuum tetrahedra), and how many of them hold no fixed node (they fall: allowed, and
   /// reported). 0 and 0 when nothing changed.
@@ -131,7 +128,6 @@ struct TopologyChange {
     tetrahedra_cut += o.tetrahedra_cut;
     links_torn += o.links_torn;
     tetrahedra_torn += o.tetrahedra_torn;
-    unrecorded += o.unrecorded;
     if (o.pieces > 0) {
       pieces = o.pieces;
       loose_pieces = o.loose_pieces;
@@ -192,7 +188,6 @@ class TopologyEditor {
     m_tear_length2.reserve(std::size_t(L));
     update_tearable(model);
     const std::size_t n = std::size_t(model.num_nodes());
-    m_parent.resize(n);
     m_outcode.resize(n);
     m_label.assign(n, 0);
     m_label_fixed.assign(2 * n + 1, 0);  // the labels of count_pieces() and one per split
@@ -225,48 +220,41 @@ class TopologyEditor {
   /// @brief Counts the pieces of the model from scratch, joined by the links with `force_link`
   /// set (ForceModel::force_links()) and by the intact tetrahedra of continuum regions, into
   /// `change.pieces`, and those without a fixed node into `change.loose_pieces`; labels every
-  /// node with its piece (piece()). No allocation. Simulation calls it at refresh and when fixed
-  /// flags change; after a cut or a tear, update_pieces() does the same work incrementally.
+  /// node with its piece (piece()). O(|V| + |L| + |T|), no allocation. Simulation calls it at
+  /// refresh and when fixed flags change; after a cut or a tear, update_pieces() does the same work
+  /// incrementally.
   void count_pieces(const SphereModel<Scalar>& model, const std::vector<std::uint8_t>& force_link,
                     TopologyChange& change) noexcept {
     const Index n = model.num_nodes();
-    if (std::size_t(n) != m_parent.size() || force_link.size() != std::size_t(m_num_links) ||
+    if (std::size_t(n) != m_label.size() || force_link.size() != std::size_t(m_num_links) ||
         !sized_for(model))
       return;
-    for (Index i = 0; i < n; ++i) m_parent[std::size_t(i)] = i;
-    auto find = [&](Index i) {
-      while (m_parent[std::size_t(i)] != i) {
-        m_parent[std::size_t(i)] = m_parent[std::size_t(m_parent[std::size_t(i)])];  // halving
-        i = m_parent[std::size_t(i)];
-      }
-      return i;
-    };
-    auto join = [&](Index a, Index b) {
-      a = find(a);
-      b = find(b);
-      if (a != b) m_parent[std::size_t(std::max(a, b))] = std::min(a, b);  // deterministic
-    };
-    const auto links = model.links();
-    for (Index l = 0; l < m_num_links; ++l)
-      if (force_link[std::size_t(l)]) join(links(l, 0), links(l, 1));
-    const auto tets = model.tetrahedra();
-    const auto intact = model.tetrahedron_intact();
-    for (Index t = 0; t < m_num_tetrahedra; ++t)
-      if (intact[t] && m_tet_continuum[std::size_t(t)])
-        for (int k = 1; k < 4; ++k) join(tets(t, 0), tets(t, k));
-    // Labels: each piece's smallest node; fixed nodes counted per label.
+    // Breadth-first from each node not reached yet, in index order: each piece is labelled with
+    // its smallest node.
+    const std::uint32_t mark = next_mark();
     std::fill(m_label_fixed.begin(), m_label_fixed.end(), Index(0));
     const auto fixed = model.fixed();
-    m_pieces = 0;
-    for (Index i = 0; i < n; ++i) {
-      const Index r = find(i);
-      m_label[std::size_t(i)] = r;
-      if (r == i) ++m_pieces;
-      if (fixed[i]) ++m_label_fixed[std::size_t(r)];
+    m_pieces = m_loose = 0;
+    for (Index root = 0; root < n; ++root) {
+      if (m_seen[std::size_t(root)] == mark) continue;
+      m_seen[std::size_t(root)] = mark;
+      m_front_a[0] = root;
+      std::size_t size = 1;
+      for (std::size_t head = 0; head < size; ++head) {
+        const Index u = m_front_a[head];
+        m_label[std::size_t(u)] = root;
+        m_label_fixed[std::size_t(root)] += fixed[u];
+        for_each_neighbour(model, force_link, u, [&](Index v) {
+          if (m_seen[std::size_t(v)] != mark) {
+            m_seen[std::size_t(v)] = mark;
+            m_front_a[size++] = v;
+          }
+          return false;
+        });
+      }
+      ++m_pieces;
+      m_loose += Index(m_label_fixed[std::size_t(root)] == 0);
     }
-    m_loose = 0;
-    for (Index i = 0; i < n; ++i)
-      if (m_label[std::size_t(i)] == i && m_label_fixed[std::size_t(i)] == 0) ++m_loose;
     m_next_label = n;
     m_labelled = true;
     change.pieces = m_pieces;
@@ -281,7 +269,7 @@ class TopologyEditor {
   /// one). Falls back to count_pieces() when not labelled yet. No allocation.
   void update_pieces(const SphereModel<Scalar>& model, const std::vector<std::uint8_t>& force_link,
                      TopologyChange& change) noexcept {
-    if (!m_labelled || change.unrecorded > 0 || std::size_t(model.num_nodes()) != m_label.size()) {
+    if (!m_labelled || std::size_t(model.num_nodes()) != m_label.size()) {
       count_pieces(model, force_link, change);
       return;
     }
@@ -372,7 +360,7 @@ class TopologyEditor {
       if (!intact[l] || !crosses(links(l, 0), links(l, 1))) continue;
       intact[l] = 0;
       ++change.links_cut;
-      record_link(l, change);
+      m_broken_links.push_back(l);  // at most |L| per event: within the capacity refresh() made
     }
     const auto tets = model.tetrahedra();
     auto tet_intact = model.tetrahedron_intact();
@@ -387,7 +375,7 @@ class TopologyEditor {
       if (!cut) continue;
       tet_intact[t] = 0;
       ++change.tetrahedra_cut;
-      record_tetrahedron(t, change);
+      m_removed_tetrahedra.push_back(t);  // at most |T| per event: within the capacity
     }
     return change;
   }
@@ -411,14 +399,14 @@ class TopologyEditor {
       if (!(dx * dx + dy * dy + dz * dz > m_tear_length2[k])) continue;
       intact[l] = 0;
       ++change.links_torn;
-      record_link(l, change);
+      m_broken_links.push_back(l);
       for (Index j = m_link_tet_start[std::size_t(l)]; j < m_link_tet_start[std::size_t(l) + 1];
            ++j) {
         const Index t = m_link_tets[std::size_t(j)];
         if (!tet_intact[t]) continue;
         tet_intact[t] = 0;
         ++change.tetrahedra_torn;
-        record_tetrahedron(t, change);
+        m_removed_tetrahedra.push_back(t);
       }
     }
     return change;
@@ -461,45 +449,23 @@ class TopologyEditor {
   int split(const SphereModel<Scalar>& model, const std::vector<std::uint8_t>& force_link, Index a,
             Index b) noexcept {
     if (a == b || m_label[std::size_t(a)] != m_label[std::size_t(b)]) return 0;
-    if (m_generation > std::numeric_limits<std::uint32_t>::max() - 4) {
-      std::fill(m_seen.begin(), m_seen.end(), std::uint32_t(0));
-      m_generation = 0;
-    }
-    const std::uint32_t mark_a = ++m_generation, mark_b = ++m_generation;
+    const std::uint32_t mark_a = next_mark(), mark_b = next_mark();
     std::size_t head_a = 0, head_b = 0, size_a = 1, size_b = 1;
     m_front_a[0] = a;
     m_front_b[0] = b;
     m_seen[std::size_t(a)] = mark_a;
     m_seen[std::size_t(b)] = mark_b;
-    const auto links = model.links();
-    const auto tets = model.tetrahedra();
-    const auto intact = model.tetrahedron_intact();
     // Expands one node of a front; true when it touched the other front.
     auto expand = [&](std::vector<Index>& front, std::size_t& head, std::size_t& size,
                       std::uint32_t mine, std::uint32_t other) {
-      const Index u = front[head++];
-      auto visit = [&](Index v) {
+      return for_each_neighbour(model, force_link, front[head++], [&](Index v) {
         if (m_seen[std::size_t(v)] == other) return true;
         if (m_seen[std::size_t(v)] != mine) {
           m_seen[std::size_t(v)] = mine;
           front[size++] = v;
         }
         return false;
-      };
-      for (Index k = m_node_link_start[std::size_t(u)]; k < m_node_link_start[std::size_t(u) + 1];
-           ++k) {
-        const Index l = m_node_links[std::size_t(k)];
-        if (force_link[std::size_t(l)] && visit(links(l, 0) == u ? links(l, 1) : links(l, 0)))
-          return true;
-      }
-      for (Index k = m_node_tet_start[std::size_t(u)]; k < m_node_tet_start[std::size_t(u) + 1];
-           ++k) {
-        const Index t = m_node_tets[std::size_t(k)];
-        if (!intact[t]) continue;
-        for (int c = 0; c < 4; ++c)
-          if (tets(t, c) != u && visit(tets(t, c))) return true;
-      }
-      return false;
+      });
     };
     for (;;) {
       if (head_a == size_a) {
@@ -513,6 +479,38 @@ class TopologyEditor {
       }
       if (expand(m_front_b, head_b, size_b, mark_b, mark_a)) return 0;
     }
+  }
+  // A fresh mark for m_seen (the marks of earlier searches then mean nothing).
+  std::uint32_t next_mark() noexcept {
+    if (m_generation == std::numeric_limits<std::uint32_t>::max()) {
+      std::fill(m_seen.begin(), m_seen.end(), std::uint32_t(0));
+      m_generation = 0;
+    }
+    return ++m_generation;
+  }
+  // Calls visit(v) for each node v joined to u (by a link that carries force or an intact
+  // continuum tetrahedron) until it returns true; returns whether it did.
+  template <typename Visit>
+  bool for_each_neighbour(const SphereModel<Scalar>& model,
+                          const std::vector<std::uint8_t>& force_link, Index u,
+                          Visit visit) const noexcept {
+    const auto links = model.links();
+    for (Index k = m_node_link_start[std::size_t(u)]; k < m_node_link_start[std::size_t(u) + 1];
+         ++k) {
+      const Index l = m_node_links[std::size_t(k)];
+      if (force_link[std::size_t(l)] && visit(links(l, 0) == u ? links(l, 1) : links(l, 0)))
+        return true;
+    }
+    const auto tets = model.tetrahedra();
+    const auto intact = model.tetrahedron_intact();
+    for (Index k = m_node_tet_start[std::size_t(u)]; k < m_node_tet_start[std::size_t(u) + 1];
+         ++k) {
+      const Index t = m_node_tets[std::size_t(k)];
+      if (!intact[t]) continue;
+      for (int c = 0; c < 4; ++c)
+        if (tets(t, c) != u && visit(tets(t, c))) return true;
+    }
+    return false;
   }
   // The first `size` nodes of `front` leave piece `old` for a new one.
   void relabel(const SphereModel<Scalar>& model, const std::vector<Index>& front, std::size_t size,
@@ -535,18 +533,6 @@ class TopologyEditor {
   [[nodiscard]] bool sized_for(const SphereModel<Scalar>& model) const noexcept {
     return model.num_links() == m_num_links && model.num_tetrahedra() == m_num_tetrahedra;
   }
-  void record_link(Index l, TopologyChange& change) noexcept {
-    if (m_broken_links.size() < m_broken_links.capacity())
-      m_broken_links.push_back(l);
-    else
-      ++change.unrecorded;
-  }
-  void record_tetrahedron(Index t, TopologyChange& change) noexcept {
-    if (m_removed_tetrahedra.size() < m_removed_tetrahedra.capacity())
-      m_removed_tetrahedra.push_back(t);
-    else
-      ++change.unrecorded;
-  }
 
   Index m_num_links{0}, m_num_tetrahedra{0};
   ScalarArray<Scalar> m_tear;
@@ -555,7 +541,6 @@ class TopologyEditor {
   std::vector<Scalar> m_tear_length2;  // per tearable link: (l0 (1 + tear strain))^2
   std::vector<Index> m_link_tet_start, m_link_tets;
   std::vector<Index> m_broken_links, m_removed_tetrahedra;
-  std::vector<Index> m_parent;  // union-find over the nodes (count_pieces)
   // The pieces: a label per node, fixed nodes per label, the counts; the nodes' links and
   // continuum tetrahedra and the two fronts of update_pieces()' searches.
   std::vector<Index> m_label, m_label_fixed;

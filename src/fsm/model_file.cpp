@@ -566,13 +566,7 @@ SphereModel<double> rebuild_spheres(const std::vector<Region<double>>& regions,
     s.add_link(l.links(k, 0), l.links(k, 1),
                VoigtLink<double>{l.rest_lengths[k], l.stiffness[k], l.damping[k],
                                  l.large_stiffness[k], l.switch_strain[k]});
-  for (Index k = 0; k < num_links; ++k) {
-    if (!(l.tear_strain[k] > 0))  // NaN too
-      throw Error("", "link " + std::to_string(k),
-                  "tear strain " + std::to_string(l.tear_strain[k]) +
-                      " must be positive (infinity = never tears)");
-    s.tear_strain()[k] = l.tear_strain[k];
-  }
+  s.tear_strain() = l.tear_strain;  // checked with the rest by the model's validate()
   for (Index t = 0; t < Index(tets.rows()); ++t)
     s.add_tetrahedron(tets(t, 0), tets(t, 1), tets(t, 2), tets(t, 3));
   return s;

@@ -329,62 +329,24 @@ class ContinuumTerm {
       const Index t = tets[k];
       if (t < 0 || std::size_t(t) >= m_tet_element.size()) continue;
       const Index e = m_tet_element[std::size_t(t)];
-      if (e < 0 || m_removed[std::size_t(e)]) continue;
-      m_removed[std::size_t(e)] = 1;
-      for (std::size_t c = 0; c < 4; ++c) {
-        const auto a = std::size_t(m_tets[4 * std::size_t(e) + c]);
-        m_node_volume[a] =
-            --m_node_count[a] > 0 ? m_node_volume[a] - m_volume[std::size_t(e)] / 4 : Scalar(0);
-      }
-      for (std::size_t c = 0; c < 6; ++c) {
-        const auto edge = std::size_t(m_element_edge[12 * std::size_t(e) + 2 * c]);
-        const auto part = std::size_t(m_element_edge[12 * std::size_t(e) + 2 * c + 1]);
-        m_edge_k[edge] =
-            --m_edge_count[edge] > 0 ? m_edge_k[edge] - m_edge_part_k[part] : Scalar(0);
-      }
+      if (e >= 0) remove_element(std::size_t(e));
     }
   }
 
-  /// Takes the model's removed tetrahedra out (`intact`: per model tetrahedron, 0 = removed): a
-  /// removed element carries no force, its volume leaves its nodes' volumes and its share leaves
-  /// its edges' springs and dashpots. No allocation (real-time: a cut or a tear calls it).
-  /// Returns how many elements are removed.
-  std::size_t apply_topology(const std::uint8_t* intact) noexcept {
-    const std::size_t nt = m_volume.size();
-    std::size_t removed = 0;
-    for (std::size_t t = 0; t < nt; ++t) {
-      m_removed[t] = intact[m_element_tet[t]] ? 0 : 1;
-      removed += m_removed[t];
-    }
+  /// Makes the elements what the model says (`intact`: per model tetrahedron, 0 = removed): from
+  /// the whole term, every removed one taken out as remove() does. A removed element carries no
+  /// force, its volume leaves its nodes' volumes and its share leaves its edges' springs and
+  /// dashpots. No allocation.
+  void apply_topology(const std::uint8_t* intact) noexcept {
+    std::fill(m_removed.begin(), m_removed.end(), std::uint8_t(0));
+    std::copy(m_node_volume_whole.begin(), m_node_volume_whole.end(), m_node_volume.begin());
+    std::copy(m_edge_k_whole.begin(), m_edge_k_whole.end(), m_edge_k.begin());
     std::fill(m_node_count.begin(), m_node_count.end(), Index(0));
-    for (std::size_t t = 0; t < nt; ++t)
-      if (!m_removed[t])
-        for (std::size_t k = 0; k < 4; ++k) ++m_node_count[std::size_t(m_tets[4 * t + k])];
-    for (std::size_t e = 0; e < num_edges(); ++e) {
-      Index c = 0;
-      for (Index p = m_edge_part_start[e]; p < m_edge_part_start[e + 1]; ++p)
-        c += m_removed[std::size_t(m_edge_part_element[std::size_t(p)])] ? 0 : 1;
-      m_edge_count[e] = c;
-    }
-    if (removed == 0) {
-      std::copy(m_node_volume_whole.begin(), m_node_volume_whole.end(), m_node_volume.begin());
-      std::copy(m_edge_k_whole.begin(), m_edge_k_whole.end(), m_edge_k.begin());
-      return 0;
-    }
-    std::fill(m_node_volume.begin(), m_node_volume.end(), Scalar(0));
-    for (std::size_t t = 0; t < nt; ++t) {
-      if (m_removed[t]) continue;
-      for (std::size_t k = 0; k < 4; ++k)
-        m_node_volume[std::size_t(m_tets[4 * t + k])] += m_volume[t] / Scalar(4);
-    }
-    for (std::size_t e = 0; e < num_edges(); ++e) {
-      Scalar k(0);
-      for (Index p = m_edge_part_start[e]; p < m_edge_part_start[e + 1]; ++p)
-        if (!m_removed[std::size_t(m_edge_part_element[std::size_t(p)])])
-          k += m_edge_part_k[std::size_t(p)];
-      m_edge_k[e] = k;
-    }
-    return removed;
+    for (const Index a : m_tets) ++m_node_count[std::size_t(a)];
+    for (std::size_t e = 0; e < num_edges(); ++e)
+      m_edge_count[e] = m_edge_part_start[e + 1] - m_edge_part_start[e];
+    for (std::size_t t = 0; t < m_volume.size(); ++t)
+      if (!intact[m_element_tet[t]]) remove_element(t);
   }
 
   [[nodiscard]] bool empty() const noexcept { return m_volume.empty(); }
@@ -853,6 +815,21 @@ class ContinuumTerm {
     p[0] += v[0];
     p[1] += v[1];
     p[2] += v[2];
+  }
+  // Takes element e out (nothing if it is out already): its volume from its nodes, its share from
+  // its edges; a node or an edge left with no element gets exactly 0.
+  void remove_element(std::size_t e) noexcept {
+    if (m_removed[e]) return;
+    m_removed[e] = 1;
+    for (std::size_t c = 0; c < 4; ++c) {
+      const auto a = std::size_t(m_tets[4 * e + c]);
+      m_node_volume[a] = --m_node_count[a] > 0 ? m_node_volume[a] - m_volume[e] / 4 : Scalar(0);
+    }
+    for (std::size_t c = 0; c < 6; ++c) {
+      const auto edge = std::size_t(m_element_edge[12 * e + 2 * c]);
+      const auto part = std::size_t(m_element_edge[12 * e + 2 * c + 1]);
+      m_edge_k[edge] = --m_edge_count[edge] > 0 ? m_edge_k[edge] - m_edge_part_k[part] : Scalar(0);
+    }
   }
   /// The rest shape gradient of node a (0-3) of element t: dF = sum_a x_a g_a^T.
   [[nodiscard]] Vector3<Scalar> shape_gradient(std::size_t t, int a) const noexcept {

@@ -252,6 +252,7 @@ class ServoLoop {
   double m_max_force{0};
   std::function<void(double)> m_hook;
   InstrumentAction* m_action{nullptr};
+  collision::Wrench<double> m_action_wrench;  // the action's wrench at the end of the last step
 
   detail::TripleBuffer<DeviceSample> m_device_buffer;
   detail::TripleBuffer<ProxySample> m_proxy_buffer;

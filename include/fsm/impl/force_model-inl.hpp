@@ -279,23 +279,23 @@ Index ForceModel<Scalar>::limit_contact_stiffness(const SphereModel<Scalar>& mod
                                                   Scalar h) noexcept {
   const auto mass = model.masses();
   Index softened = 0;
+  // At most m / (2 h^2) for a spring on a mass m, the damping scaled to keep its ratio.
+  auto soften = [&](Scalar& stiffness, Scalar& damping, Scalar m) {
+    const Scalar cap = Scalar(0.5) * m / (h * h);
+    if (!(stiffness > cap)) return;
+    damping *= std::sqrt(cap / stiffness);
+    stiffness = cap;
+    ++softened;
+  };
   for (Index k = 0; k < m_num_contacts; ++k) {
     PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
-    const Scalar m =
-        c.other < 0 ? mass[c.node] : mass[c.node] * mass[c.other] / (mass[c.node] + mass[c.other]);
-    const Scalar cap = Scalar(0.5) * m / (h * h);
-    if (!(c.stiffness > cap)) continue;
-    c.damping *= std::sqrt(cap / c.stiffness);
-    c.stiffness = cap;
-    ++softened;
+    soften(
+        c.stiffness, c.damping,
+        c.other < 0 ? mass[c.node] : mass[c.node] * mass[c.other] / (mass[c.node] + mass[c.other]));
   }
   for (Index k = 0; k < m_num_held; ++k) {
     HeldNode<Scalar>& hn = m_held[std::size_t(k)];
-    const Scalar cap = Scalar(0.5) * mass[hn.node] / (h * h);
-    if (!(hn.stiffness > cap)) continue;
-    hn.damping *= std::sqrt(cap / hn.stiffness);
-    hn.stiffness = cap;
-    ++softened;
+    soften(hn.stiffness, hn.damping, mass[hn.node]);
   }
   return softened;
 }

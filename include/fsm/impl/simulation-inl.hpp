@@ -118,10 +118,7 @@ void Simulation<Scalar>::refresh() {
 template <typename Scalar>
 void Simulation<Scalar>::apply_topology_change(TopologyChange& change) noexcept {
   if (!change.any()) return;
-  if (change.unrecorded > 0)
-    m_forces.update_topology(m_model);
-  else
-    m_forces.update_topology(m_model, m_topology.broken_links(), m_topology.removed_tetrahedra());
+  m_forces.update_topology(m_model, m_topology.broken_links(), m_topology.removed_tetrahedra());
   m_topology.update_pieces(m_model, m_forces.force_links(), change);
   // The broken links' and elements' energy left the model (removing an element also changes its
   // nodes' volumes, so the continuum law's volumetric energy can rise as well as fall): the next

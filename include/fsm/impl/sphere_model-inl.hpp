@@ -131,6 +131,7 @@ Index SphereModel<Scalar>::add_link(Index i, Index j, const VoigtLink<Scalar>& l
   m_large_stiffness.push_back(law.large_stiffness);
   m_switch_strain.push_back(law.switch_strain);
   m_tear_strain.push_back(std::numeric_limits<Scalar>::infinity());
+  m_link_intact.push_back(1);
   try {
     check_link(l);
   } catch (...) {
@@ -141,9 +142,9 @@ Index SphereModel<Scalar>::add_link(Index i, Index j, const VoigtLink<Scalar>& l
     m_large_stiffness.pop_back();
     m_switch_strain.pop_back();
     m_tear_strain.pop_back();
+    m_link_intact.pop_back();
     throw;
   }
-  m_link_intact.push_back(1);
   return l;
 }
 
@@ -350,9 +351,9 @@ void SphereModel<Scalar>::check_link(Index l) const {
     fail("large-strain stiffness " + num(m_large_stiffness[k]) + " N/m must be positive");
   if (std::isnan(m_switch_strain[k]) || !(m_switch_strain[k] > 0))
     fail("switch strain " + num(m_switch_strain[k]) + " must be positive (infinity = linear)");
-  if (k < m_tear_strain.size() && !(m_tear_strain[k] > 0))
+  if (!(m_tear_strain[k] > 0))
     fail("tear strain " + num(m_tear_strain[k]) + " must be positive (infinity = never tears)");
-  if (k < m_link_intact.size() && m_link_intact[k] > 1) fail("intact flag must be 0 or 1");
+  if (m_link_intact[k] > 1) fail("intact flag must be 0 or 1");
 }
 
 template <typename Scalar>

@@ -160,6 +160,7 @@ void ServoLoop::begin(bool local_model) {
   m_max_force =
       m_options.max_force > 0 ? std::min(m_options.max_force, lim.max_force) : lim.max_force;
   m_local_model = local_model;
+  m_action_wrench = collision::Wrench<double>{};
   m_stop = false;
   m_tripped = false;
   m_rearm_time = 0;
@@ -273,12 +274,9 @@ ServoLoop::TissueSample ServoLoop::tissue_sample() const noexcept {
   t.force = w.force;
   t.stiffness = w.stiffness;
   t.damping = w.damping;
-  if (m_action != nullptr) {
-    const collision::Wrench<double> a = m_action->wrench(m_sim);
-    t.force += a.force;
-    t.stiffness += a.stiffness;
-    t.damping += a.damping;
-  }
+  t.force += m_action_wrench.force;
+  t.stiffness += m_action_wrench.stiffness;
+  t.damping += m_action_wrench.damping;
   t.position = m_proxy.position;
   t.velocity = m_proxy.velocity;
   return t;
@@ -342,6 +340,7 @@ void ServoLoop::physics_step(double t) noexcept {
   if (m_action != nullptr) m_action->before_step(m_sim, ins.pose, m_proxy.velocity, t);
   const StepReport report = m_sim.step(m_period);
   m_contacts.collect(m_sim.forces());
+  if (m_action != nullptr) m_action_wrench = m_action->wrench(m_sim);  // once per step
   if (!report.advanced()) {
     ++m_diverged;
     trip();
@@ -364,7 +363,7 @@ void ServoLoop::physics_step(double t) noexcept {
   s.device_position = d.position;
   s.force = d.force;
   s.tissue_force = m_contacts.wrench(m_instrument).force;
-  if (m_action != nullptr) s.tissue_force += m_action->wrench(m_sim).force;
+  s.tissue_force += m_action_wrench.force;
   s.step_time = std::chrono::duration<double>(Clock::now() - start).count();
   s.advanced = report.advanced();
   m_snapshots.publish();
