@@ -1,110 +1,251 @@
 #!/usr/bin/python3
-"""Both force laws, uncalibrated, against the converged CalculiX reference, at several resolutions.
+"""Both force laws, uncalibrated, against the converged CalculiX reference, at several resolutions,
+with same-mesh finite elements beside them.
 
     /usr/bin/python3 validation/continuum_sweep.py --indent build/validation/fsm-indent \
-        [--radii 2.5 2 1.5 1.25] [--work /tmp/sweep]
+        --build build/src/builder/fsm-build [--radii 2.5 2 1.5 1.25] [--work /tmp/sweep] \
+        [--no-fem] [--reuse]
 
 For each sphere radius (the builder's isotropic metric on the 20 x 20 x 10 mm box, sharp edges
-protected), each case (bonded compression, rigid 5 mm ball through contact) and each law (the
-paper's link network; the continuum law at nu = 0.49), runs fsm-indent at 150 mm/min and compares
-with reference/converged_<case>_nu0.49.csv: the largest displacement difference at equal force (the
+protected) it runs fsm-indent at 150 mm/min for each case and law, and compares with
+reference/converged_<case>_nu<nu>.csv: the largest displacement difference at equal force (the
 paper's metric), the RMS force error, and the largest relative force error from 0.5 to 2.5 mm.
-Writes validation/results/continuum_sweep.json and two charts in docs/img: error against spacing
-(log-log, with the observed order) and median step time against error.
+
+- cases: bonded compression and the bonded 4 x 4 mm punch at nu = 0.49 and 0.45; the rigid 5 mm
+  ball through contact at nu = 0.49 (the only nu with a converged contact reference);
+- laws: the paper's link network (it has no Poisson's ratio: one run per case, scored against
+  each nu's reference) and the continuum law at each nu;
+- same-mesh FEM (unless --no-fem; bonded cases only): CalculiX C3D4 and C3D10 (the same
+  tetrahedra, straight mid-side nodes) on the exact mesh fsm-build makes from the scene
+  (validation/fem.py). C3D4 against the converged reference is the discretisation error of
+  linear tetrahedra on this mesh (with their volumetric locking); C3D10 that of the same mesh
+  with a quadratic field; the continuum law against C3D4 is what its nodal pressure changes.
+
+Writes validation/results/continuum_sweep.json and three charts in docs/img: error against
+spacing (log-log, with the observed order), median step time against error, and the
+force-displacement curves at one radius.
 """
 import argparse
 import json
 import os
 import subprocess
 import sys
+import time
 
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
+import fem  # noqa: E402
 import scenes  # noqa: E402
 import validate  # noqa: E402
+
+# (case, nu) pairs scored; the ball has a converged reference at nu = 0.49 only.
+STUDIES = [("compression", 0.49), ("compression", 0.45), ("punch", 0.49), ("punch", 0.45),
+           ("sphere", 0.49)]
+BONDED = ("compression", "punch")
+
+
+def score(d, F, case, nu):
+    dr, Fr = validate.converged_reference(case, nu)
+    m = validate.metrics(d, F, dr, Fr)
+    mask = (d >= 0.5 - 1e-9) & (d <= 2.5 + 1e-9)
+    ref = np.interp(d[mask], dr, Fr)
+    rel = np.max(np.abs(F[mask] - ref) / ref)
+    return {"max_disp_diff_mm": m["max_disp_diff_mm"], "rms_force_N": m["rms_force_N"],
+            "covered": m["covered"], "max_rel_force_error_0p5_2p5": float(rel),
+            "force_1p25_N": float(np.interp(1.25, d, F)), "force_2p5_N": float(F[-1]),
+            "reference_1p25_N": float(np.interp(1.25, dr, Fr)),
+            "reference_2p5_N": float(Fr[-1])}
+
+
+def write_curve(path, d, F):
+    with open(path, "w") as f:
+        f.write("displacement_mm,force_N\n")
+        for a, b in zip(d, F):
+            f.write(f"{a:.6f},{b:.8g}\n")
 
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--indent", required=True)
+    ap.add_argument("--build", default=os.path.join(ROOT, "build", "src", "builder", "fsm-build"))
     ap.add_argument("--radii", type=float, nargs="+", default=[2.5, 2.0, 1.5, 1.25])
     ap.add_argument("--work", default="/tmp/fsm-continuum-sweep")
+    ap.add_argument("--no-fem", action="store_true", help="skip the same-mesh CalculiX runs")
+    ap.add_argument("--reuse", action="store_true", help="keep curves already in --work")
+    ap.add_argument("--ccx", default="/usr/bin/ccx")
+    ap.add_argument("--charts-only", action="store_true",
+                    help="redraw the charts from results/continuum_sweep.json")
     a = ap.parse_args()
+    if a.charts_only:
+        with open(os.path.join(HERE, "results", "continuum_sweep.json")) as f:
+            charts(json.load(f)["runs"])
+        return
     os.makedirs(a.work, exist_ok=True)
     box = os.path.join(a.work, "box.off")
     scenes.write_box_off(box)
     rows = []
+
+    def record(row):
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+
     for r in a.radii:
         scene = os.path.join(a.work, f"r{r:g}.json")
         scenes.write_scene(scene, box, "tetrahedral", r, scenes.LINEAR)
-        for case in ("compression", "sphere"):
+        runs = {}  # (case, law, nu) -> (curve path, fsm-indent summary)
+        for case, nu in STUDIES:
             for law in ("links", "continuum"):
-                out = os.path.join(a.work, f"{case}_{law}_r{r:g}.csv")
-                p = subprocess.run([a.indent, scene, "--case", case, "--law", law, "--nu", "0.49",
-                                    "--speed", "150", "--out", out], capture_output=True, text=True)
-                if p.returncode not in (0, 3):
-                    sys.exit(f"fsm-indent failed: {p.stderr}")
-                s = json.loads(p.stdout)
+                key_nu = nu if law == "continuum" else None
+                if (case, law, key_nu) in runs:
+                    continue
+                tag = f"{case}_{law}_r{r:g}" + (f"_nu{nu:g}" if law == "continuum" else "")
+                out = os.path.join(a.work, tag + ".csv")
+                summary = os.path.join(a.work, tag + ".json")
+                if not (a.reuse and os.path.exists(out) and os.path.exists(summary)):
+                    p = subprocess.run([a.indent, scene, "--case", case, "--law", law, "--nu",
+                                        str(nu), "--speed", "150", "--out", out],
+                                       capture_output=True, text=True)
+                    if p.returncode not in (0, 3):
+                        sys.exit(f"fsm-indent failed: {p.stderr}")
+                    with open(summary, "w") as f:
+                        f.write(p.stdout)
+                with open(summary) as f:
+                    runs[(case, law, key_nu)] = (out, json.load(f))
+        for case, nu in STUDIES:
+            for law in ("links", "continuum"):
+                out, s = runs[(case, law, nu if law == "continuum" else None)]
                 d, F = validate.read_curve(out)
-                dr, Fr = validate.converged_reference(case)
-                m = validate.metrics(d, F, dr, Fr)
-                mask = (d >= 0.5 - 1e-9) & (d <= 2.5 + 1e-9)
-                rel = np.max(np.abs(F[mask] - np.interp(d[mask], dr, Fr)) / np.interp(d[mask], dr, Fr))
-                row = {"radius_mm": r, "case": case, "law": law, "spheres": s["spheres"],
-                       "max_disp_diff_mm": m["max_disp_diff_mm"], "rms_force_N": m["rms_force_N"],
-                       "max_rel_force_error_0p5_2p5": float(rel), "force_2p5_N": float(F[-1]),
-                       "reference_2p5_N": float(Fr[-1]), "median_step_us": s["median_step_us"],
-                       "mean_iterations": s["mean_iterations"], "diverged": s["diverged"],
-                       "inverted_steps": s["inverted_steps"],
-                       "max_penetration_m": s["max_penetration_m"]}
-                rows.append(row)
-                print(json.dumps(row), flush=True)
+                record({"radius_mm": r, "case": case, "nu": nu, "law": law,
+                        "spheres": s["spheres"], "tetrahedra": s.get("tetrahedra"),
+                        **score(d, F, case, nu), "median_step_us": s["median_step_us"],
+                        "mean_iterations": s["mean_iterations"], "diverged": s["diverged"],
+                        "inverted_steps": s["inverted_steps"],
+                        "max_penetration_m": s["max_penetration_m"], "curve": out})
+        if a.no_fem:
+            continue
+        model = os.path.join(a.work, f"r{r:g}.fsm")
+        subprocess.run([a.build, scene, "-o", model, "-q"], check=True, capture_output=True)
+        P, T = fem.load_fsm_tets(model)
+        for case, nu in STUDIES:
+            if case not in BONDED:
+                continue
+            for order, element in ((1, "C3D4"), (2, "C3D10")):
+                out = os.path.join(a.work, f"{case}_{element}_r{r:g}_nu{nu:g}.csv")
+                seconds = None
+                if not (a.reuse and os.path.exists(out)):
+                    t0 = time.time()
+                    try:
+                        d, F = fem.run_tet_mesh(os.path.join(a.work, "ccx"), case, P, T, nu,
+                                                ccx=a.ccx, order=order,
+                                                job=f"{element}_{case}_r{r:g}_nu{nu:g}".replace(
+                                                    ".", "p"))
+                    except (RuntimeError, ValueError) as e:
+                        record({"radius_mm": r, "case": case, "nu": nu, "law": element,
+                                "spheres": len(P), "failed": str(e)[:300]})
+                        continue
+                    seconds = round(time.time() - t0, 1)
+                    write_curve(out, d, F)
+                d, F = validate.read_curve(out)
+                record({"radius_mm": r, "case": case, "nu": nu, "law": element,
+                        "spheres": len(P), "tetrahedra": len(T), **score(d, F, case, nu),
+                        "ccx_seconds": seconds, "curve": out})
     with open(os.path.join(HERE, "results", "continuum_sweep.json"), "w") as f:
         json.dump({"command": "validation/continuum_sweep.py --radii " +
-                   " ".join(f"{r:g}" for r in a.radii), "runs": rows}, f, indent=1)
+                   " ".join(f"{r:g}" for r in a.radii) + (" --no-fem" if a.no_fem else ""),
+                   "date": time.strftime("%Y-%m-%d"), "runs": rows}, f, indent=1)
+    charts(rows)
 
+
+STYLE = {"links": ("o--", "tab:blue", "paper's link network"),
+         "continuum": ("s-", "tab:red", "continuum law"),
+         "C3D4": ("^:", "tab:grey", "same-mesh C3D4 (CalculiX)"),
+         "C3D10": ("v:", "tab:green", "same-mesh C3D10 (CalculiX)")}
+
+
+def charts(rows):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     img = os.path.join(ROOT, "docs", "img")
-    fig, axes = plt.subplots(1, 2, figsize=(9.5, 3.8))
-    for ax, case in zip(axes, ("compression", "sphere")):
-        for law, style in (("links", "o--"), ("continuum", "s-")):
-            pts = [x for x in rows if x["case"] == case and x["law"] == law]
+    ok = [x for x in rows if "failed" not in x]
+    from matplotlib.ticker import NullFormatter
+    fig, axes = plt.subplots(2, 3, figsize=(13, 8))
+    axes = axes.ravel()
+    axes[-1].axis("off")
+    for ax, (case, nu) in zip(axes, STUDIES):
+        for law, (style, colour, name) in STYLE.items():
+            pts = [x for x in ok if x["case"] == case and x["nu"] == nu and x["law"] == law]
+            if not pts:
+                continue
             h = np.array([x["radius_mm"] for x in pts])
             e = np.array([max(x["max_disp_diff_mm"], 1e-4) for x in pts])
-            label = "paper's link network" if law == "links" else "continuum law"
+            label = name
             if len(h) >= 2:
-                order = np.polyfit(np.log(h), np.log(e), 1)[0]
-                label += f" (order {order:.2f})"
-            ax.loglog(h, e, style, label=label)
-        ax.axhline(0.05, color="grey", lw=0.8, ls=":", label="target 0.05 mm")
-        ax.set_title(f"{case}: error against the converged reference")
-        ax.set_xlabel("sphere radius (mm)")
+                label += f" (order {np.polyfit(np.log(h), np.log(e), 1)[0]:.2f})"
+            ax.loglog(h, e, style, color=colour, label=label)
+        ax.axhline(0.05, color="black", lw=0.8, ls=":", label="target 0.05 mm")
+        radii = sorted({x["radius_mm"] for x in ok})
+        ax.set_xticks(radii)
+        ax.set_xticklabels([f"{r:g}" for r in radii])
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.set_title(f"{case}, nu = {nu:g}")
+        ax.set_xlabel("sphere radius = element size (mm)")
         ax.set_ylabel("largest displacement difference (mm)")
         ax.grid(alpha=0.3, which="both")
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=6)
+    fig.suptitle("error against the converged reference, uncalibrated", fontsize=10)
     fig.tight_layout()
-    fig.savefig(os.path.join(img, "validation_error_vs_spacing.png"), dpi=110)
+    fig.savefig(os.path.join(img, "validation_error_vs_spacing.png"), dpi=100)
     plt.close(fig)
+
     fig, ax = plt.subplots(figsize=(5.5, 4))
     for case, marker in (("compression", "o"), ("sphere", "s")):
-        for law, colour in (("links", "tab:blue"), ("continuum", "tab:red")):
-            pts = [x for x in rows if x["case"] == case and x["law"] == law]
+        for law in ("links", "continuum"):
+            pts = [x for x in ok if x["case"] == case and x["law"] == law and x["nu"] == 0.49]
             ax.loglog([x["median_step_us"] for x in pts], [x["max_disp_diff_mm"] for x in pts],
-                      marker=marker, color=colour, ls="-", label=f"{case}, {law}")
+                      marker=marker, color=STYLE[law][1], ls="-", label=f"{case}, {law}")
     ax.axhline(0.05, color="grey", lw=0.8, ls=":")
     ax.axvline(1000, color="grey", lw=0.8, ls=":")
     ax.set_xlabel("median implicit step, 1 ms (us, one core)")
     ax.set_ylabel("largest displacement difference (mm)")
-    ax.set_title("speed against accuracy, uncalibrated")
+    ax.set_title("speed against accuracy, uncalibrated (nu = 0.49)")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(os.path.join(img, "validation_speed_accuracy_laws.png"), dpi=110)
+    plt.close(fig)
+
+    # Force against displacement at the radius nearest 1.5 mm, both nu, compression and punch.
+    radii = sorted({x["radius_mm"] for x in ok})
+    if not radii:
+        return
+    r0 = min(radii, key=lambda r: abs(r - 1.5))
+    bonded = [s for s in STUDIES if s[0] in BONDED]
+    fig, axes = plt.subplots(1, len(bonded), figsize=(4.2 * len(bonded), 3.9))
+    for ax, (case, nu) in zip(axes, bonded):
+        path = os.path.join(validate.REF_DIR, f"converged_{case}_nu{nu:g}.csv")
+        ref = np.genfromtxt(path, delimiter=",", names=True)
+        ax.plot(ref["displacement_mm"], ref["force_N"], "k-", lw=1.5, label="converged reference")
+        ax.fill_between(ref["displacement_mm"], ref["force_N"] - ref["force_uncertainty_N"],
+                        ref["force_N"] + ref["force_uncertainty_N"], color="grey", alpha=0.3,
+                        lw=0, label="its uncertainty")
+        for law, (style, colour, name) in STYLE.items():
+            pts = [x for x in ok if x["case"] == case and x["nu"] == nu and x["law"] == law
+                   and x["radius_mm"] == r0]
+            if pts:
+                d, F = validate.read_curve(pts[0]["curve"])
+                ax.plot(d, F, style.replace(":", "-") if law.startswith("C3D") else style,
+                        color=colour, ms=3, label=f"{name}, {pts[0]['spheres']} nodes")
+        ax.set_title(f"{case}, nu = {nu:g}, r = {r0:g} mm")
+        ax.set_xlabel("tool displacement (mm)")
+        ax.set_ylabel("force (N)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=6)
+    fig.tight_layout()
+    fig.savefig(os.path.join(img, "validation_same_mesh.png"), dpi=100)
     plt.close(fig)
 
 

@@ -463,11 +463,33 @@ def run_contact(workdir, case, n, E_pa, nu, depth=DEPTH, samples=10, ccx="/usr/b
 # ---------------------------------------------------------------------------------------------
 # Same-mesh linear tetrahedra: CalculiX C3D4 on a given tetrahedral mesh (e.g. a libfsm model's).
 
-def write_tet_inp(path, case, nodes_mm, tets, nu, E=13150.0, depth=DEPTH, samples=SAMPLES):
-    """The full block (no symmetry) as C3D4 elements on the given mesh; bottom nodes (z within
-    1e-6 mm of the lowest z) bonded; the tool's nodes (top face: z within 1e-6 mm of the highest
-    z; compression all of them, punch those with |x - 10| <= 2 and |y - 10| <= 2 mm) held in x, y
-    and moved down by `depth`. Tetrahedra with a negative orientation are flipped."""
+# C3D10's mid-side nodes: node 5 on edge 1-2, 6 on 2-3, 7 on 3-1, 8 on 1-4, 9 on 2-4, 10 on 3-4.
+C3D10_EDGES = ((0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3))
+
+
+def quadratic_tets(P, T):
+    """The mesh (P, T) with a node at the midpoint of every edge: (P2, T10), T10 in C3D10's node
+    order. The mid-side nodes are straight (the block's faces are flat)."""
+    mid, extra = {}, []
+    T10 = np.empty((len(T), 10), dtype=np.int64)
+    T10[:, :4] = T
+    for e, t in enumerate(T):
+        for k, (a, b) in enumerate(C3D10_EDGES):
+            key = (min(t[a], t[b]), max(t[a], t[b]))
+            if key not in mid:
+                mid[key] = len(P) + len(extra)
+                extra.append(0.5 * (P[t[a]] + P[t[b]]))
+            T10[e, 4 + k] = mid[key]
+    return np.vstack([P, np.array(extra).reshape(-1, 3)]), T10
+
+
+def write_tet_inp(path, case, nodes_mm, tets, nu, E=13150.0, depth=DEPTH, samples=SAMPLES,
+                  order=1):
+    """The full block (no symmetry) as C3D4 (order 1) or C3D10 (order 2: the same tetrahedra with
+    straight mid-side nodes) elements on the given mesh; bottom nodes (z within 1e-6 mm of the
+    lowest z) bonded; the tool's nodes (top face: z within 1e-6 mm of the highest z; compression
+    all of them, punch those with |x - 10| <= 2 and |y - 10| <= 2 mm) held in x, y and moved down
+    by `depth`. Tetrahedra with a negative orientation are flipped."""
     P = np.asarray(nodes_mm, dtype=float)
     T = np.asarray(tets, dtype=np.int64).copy()
     vol = np.einsum("ij,ij->i", np.cross(P[T[:, 1]] - P[T[:, 0]], P[T[:, 2]] - P[T[:, 0]]),
@@ -475,6 +497,11 @@ def write_tet_inp(path, case, nodes_mm, tets, nu, E=13150.0, depth=DEPTH, sample
     if np.any(vol == 0):
         raise ValueError(f"{int(np.sum(vol == 0))} degenerate tetrahedra")
     T[vol < 0] = T[vol < 0][:, [0, 2, 1, 3]]
+    if order == 2:
+        P, T = quadratic_tets(P, T)
+    elif order != 1:
+        raise ValueError(f"order {order}: 1 (C3D4) or 2 (C3D10)")
+    etype = "C3D4" if order == 1 else "C3D10"
     tol = 1e-6
     zmin, zmax = P[:, 2].min(), P[:, 2].max()
     bottom = np.nonzero(P[:, 2] < zmin + tol)[0] + 1
@@ -491,14 +518,14 @@ def write_tet_inp(path, case, nodes_mm, tets, nu, E=13150.0, depth=DEPTH, sample
     tool = tool + 1
     c10, d1 = neo_hooke_constants(E, nu)
     with open(path, "w") as f:
-        f.write(f"** libfsm validation: {case}, C3D4 on a given mesh ({len(P)} nodes, {len(T)} tets), "
+        f.write(f"** libfsm validation: {case}, {etype} on a given mesh ({len(P)} nodes, {len(T)} tets), "
                 f"E={E} Pa, nu={nu}\n")
         f.write("*NODE, NSET=NALL\n")
         for i, (x, y, z) in enumerate(P, 1):
             f.write(f"{i}, {x:.9g}, {y:.9g}, {z:.9g}\n")
-        f.write("*ELEMENT, TYPE=C3D4, ELSET=EALL\n")
+        f.write(f"*ELEMENT, TYPE={etype}, ELSET=EALL\n")
         for e, t in enumerate(T, 1):
-            f.write(f"{e}, {t[0] + 1}, {t[1] + 1}, {t[2] + 1}, {t[3] + 1}\n")
+            f.write(f"{e}, " + ", ".join(str(int(v) + 1) for v in t) + "\n")
         for name, sel in (("BOTTOM", bottom), ("TOP", tool)):
             f.write(f"*NSET, NSET={name}\n")
             for a in range(0, len(sel), 16):
@@ -514,13 +541,15 @@ def write_tet_inp(path, case, nodes_mm, tets, nu, E=13150.0, depth=DEPTH, sample
 
 
 def run_tet_mesh(work, case, nodes_mm, tets, nu, E=13150.0, depth=DEPTH, samples=SAMPLES,
-                 ccx="/usr/bin/ccx", threads=1, job=None):
-    """CalculiX C3D4 (NLGEOM, the same neo-Hookean) on a tetrahedral mesh of the full block:
-    nodes_mm (N, 3) in mm, tets (T, 4) node indices from 0. Returns (displacements mm, forces N)
-    at samples + 1 points (0 included); the force is the whole tool's (no symmetry factor)."""
+                 ccx="/usr/bin/ccx", threads=1, job=None, order=1):
+    """CalculiX C3D4 (order 1) or C3D10 (order 2) (NLGEOM, the same neo-Hookean) on a tetrahedral
+    mesh of the full block: nodes_mm (N, 3) in mm, tets (T, 4) node indices from 0. Returns
+    (displacements mm, forces N) at samples + 1 points (0 included); the force is the whole tool's
+    (no symmetry factor)."""
     os.makedirs(work, exist_ok=True)
-    job = job or f"tet_{case}_nu{nu:g}".replace(".", "p")
-    write_tet_inp(os.path.join(work, job + ".inp"), case, nodes_mm, tets, nu, E, depth, samples)
+    job = job or f"tet{order}_{case}_nu{nu:g}".replace(".", "p")
+    write_tet_inp(os.path.join(work, job + ".inp"), case, nodes_mm, tets, nu, E, depth, samples,
+                  order)
     env = dict(os.environ, OMP_NUM_THREADS=str(threads), CCX_NPROC_EQUATION_SOLVER=str(threads))
     r = subprocess.run([ccx, "-i", job], cwd=work, env=env, capture_output=True, text=True,
                        preexec_fn=_limit_memory)
@@ -581,8 +610,9 @@ def _main(argv):
     import argparse
     import json
     import time
-    ap = argparse.ArgumentParser(description="CalculiX C3D4 on a libfsm model's tetrahedral mesh: "
-                                 "fem.py tetmesh MODEL.fsm CASE NU; prints JSON")
+    ap = argparse.ArgumentParser(description="CalculiX C3D4 or C3D10 on a libfsm model's "
+                                 "tetrahedral mesh: fem.py tetmesh MODEL.fsm CASE NU [--order 2]; "
+                                 "prints JSON")
     ap.add_argument("command", choices=["tetmesh", "tetcheck"],
                     help="tetcheck: the uniaxial-strain check of run_tet_mesh (tet_selfcheck)")
     ap.add_argument("model", nargs="?")
@@ -592,6 +622,8 @@ def _main(argv):
     ap.add_argument("--depth", type=float, default=DEPTH, help="mm")
     ap.add_argument("--work", default=None)
     ap.add_argument("--ccx", default="/usr/bin/ccx")
+    ap.add_argument("--order", type=int, choices=[1, 2], default=1,
+                    help="1: C3D4 on the tetrahedra; 2: C3D10, the same with mid-side nodes")
     a = ap.parse_args(argv)
     import tempfile
     work = a.work or tempfile.mkdtemp(prefix="fsm_tet_")
@@ -604,8 +636,9 @@ def _main(argv):
         ap.error("tetmesh needs MODEL CASE NU")
     P, T = load_fsm_tets(a.model)
     t0 = time.time()
-    d, F = run_tet_mesh(work, a.case, P, T, a.nu, a.E, a.depth, ccx=a.ccx)
-    print(json.dumps({"model": a.model, "case": a.case, "nu": a.nu, "E_pa": a.E, "nodes": len(P),
+    d, F = run_tet_mesh(work, a.case, P, T, a.nu, a.E, a.depth, ccx=a.ccx, order=a.order)
+    print(json.dumps({"model": a.model, "case": a.case, "nu": a.nu, "E_pa": a.E,
+                      "element": "C3D4" if a.order == 1 else "C3D10", "nodes": len(P),
                       "tetrahedra": len(T), "work": work, "seconds": round(time.time() - t0, 1),
                       "displacement_mm": [round(x, 6) for x in d],
                       "force_N": [float(f"{x:.6g}") for x in F]}))
