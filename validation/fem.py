@@ -484,12 +484,13 @@ def quadratic_tets(P, T):
 
 
 def write_tet_inp(path, case, nodes_mm, tets, nu, E=13150.0, depth=DEPTH, samples=SAMPLES,
-                  order=1):
+                  order=1, confined=False):
     """The full block (no symmetry) as C3D4 (order 1) or C3D10 (order 2: the same tetrahedra with
     straight mid-side nodes) elements on the given mesh; bottom nodes (z within 1e-6 mm of the
     lowest z) bonded; the tool's nodes (top face: z within 1e-6 mm of the highest z; compression
     all of them, punch those with |x - 10| <= 2 and |y - 10| <= 2 mm) held in x, y and moved down
-    by `depth`. Tetrahedra with a negative orientation are flipped."""
+    by `depth`. Tetrahedra with a negative orientation are flipped. `confined` holds every node
+    in x and y (uniaxial strain, for the self-check)."""
     P = np.asarray(nodes_mm, dtype=float)
     T = np.asarray(tets, dtype=np.int64).copy()
     vol = np.einsum("ij,ij->i", np.cross(P[T[:, 1]] - P[T[:, 0]], P[T[:, 2]] - P[T[:, 0]]),
@@ -534,6 +535,8 @@ def write_tet_inp(path, case, nodes_mm, tets, nu, E=13150.0, depth=DEPTH, sample
         f.write(f"{c10:.9g}, {d1:.9g}\n")
         f.write("*SOLID SECTION, ELSET=EALL, MATERIAL=TISSUE\n")
         f.write("*BOUNDARY\nBOTTOM, 1, 3, 0.\nTOP, 1, 2, 0.\n")
+        if confined:
+            f.write("NALL, 1, 2, 0.\n")
         f.write(step_cards(samples))
         f.write(f"*BOUNDARY\nTOP, 3, 3, {-depth:.9g}\n")
         f.write("*NODE PRINT, NSET=TOP, TOTALS=ONLY\nRF\n*END STEP\n")
@@ -541,7 +544,7 @@ def write_tet_inp(path, case, nodes_mm, tets, nu, E=13150.0, depth=DEPTH, sample
 
 
 def run_tet_mesh(work, case, nodes_mm, tets, nu, E=13150.0, depth=DEPTH, samples=SAMPLES,
-                 ccx="/usr/bin/ccx", threads=1, job=None, order=1):
+                 ccx="/usr/bin/ccx", threads=1, job=None, order=1, confined=False):
     """CalculiX C3D4 (order 1) or C3D10 (order 2) (NLGEOM, the same neo-Hookean) on a tetrahedral
     mesh of the full block: nodes_mm (N, 3) in mm, tets (T, 4) node indices from 0. Returns
     (displacements mm, forces N) at samples + 1 points (0 included); the force is the whole tool's
@@ -549,7 +552,7 @@ def run_tet_mesh(work, case, nodes_mm, tets, nu, E=13150.0, depth=DEPTH, samples
     os.makedirs(work, exist_ok=True)
     job = job or f"tet{order}_{case}_nu{nu:g}".replace(".", "p")
     write_tet_inp(os.path.join(work, job + ".inp"), case, nodes_mm, tets, nu, E, depth, samples,
-                  order)
+                  order, confined)
     env = dict(os.environ, OMP_NUM_THREADS=str(threads), CCX_NPROC_EQUATION_SOLVER=str(threads))
     r = subprocess.run([ccx, "-i", job], cwd=work, env=env, capture_output=True, text=True,
                        preexec_fn=_limit_memory)
@@ -577,10 +580,11 @@ def load_fsm_tets(path):
     return P, T
 
 
-def tet_selfcheck(work, nu=0.49, E=13150.0, ccx="/usr/bin/ccx"):
+def tet_selfcheck(work, nu=0.49, E=13150.0, ccx="/usr/bin/ccx", order=1):
     """run_tet_mesh on a 2 x 2 x 1 mm block (2 x 2 x 1 cubes, 6 tetrahedra each) compressed by
-    0.25 mm: every node is on the bonded bottom or the tool, so the deformation is homogeneous
-    uniaxial strain, stretch l = 1 - d / 1 mm, and the exact force of ccx's neo-Hookean
+    0.25 mm with every node held in x and y (C3D10's mid-height mid-side nodes too), so the
+    deformation is homogeneous uniaxial strain, stretch l = 1 - d / 1 mm, which both element
+    orders represent exactly, and the exact force of ccx's neo-Hookean
     W = C10 (J^(-2/3) I1 - 3) + (J - 1)^2 / D1 is F = -A (4/3 C10 (l^(1/3) - l^(-5/3))
     + 2 (l - 1) / D1) (small strain: A M eps, M = E (1 - nu) / ((1 + nu)(1 - 2 nu))).
     Returns rows (d, F_ccx, F_exact, F_small_strain) and the largest relative difference."""
@@ -597,7 +601,8 @@ def tet_selfcheck(work, nu=0.49, E=13150.0, ccx="/usr/bin/ccx"):
             c = [idx[(i + (b & 1), j + ((b >> 1) & 1), (b >> 2) & 1)] for b in range(8)]
             T += [[c[a] for a in t] for t in kuhn]
     d, F = run_tet_mesh(work, "compression", np.array(P), np.array(T), nu, E, depth=0.25,
-                        samples=10, ccx=ccx, job="tet_selfcheck")
+                        samples=10, ccx=ccx, job=f"tet{order}_selfcheck", order=order,
+                        confined=True)
     c10, d1 = neo_hooke_constants(E, nu)
     lam = 1 - d
     Fx = -4.0 * (c10 * 4 / 3 * (lam ** (1 / 3) - lam ** (-5 / 3)) + 2 * (lam - 1) / d1)
@@ -608,6 +613,7 @@ def tet_selfcheck(work, nu=0.49, E=13150.0, ccx="/usr/bin/ccx"):
 
 def _main(argv):
     import argparse
+    import sys
     import json
     import time
     ap = argparse.ArgumentParser(description="CalculiX C3D4 or C3D10 on a libfsm model's "
@@ -624,13 +630,18 @@ def _main(argv):
     ap.add_argument("--ccx", default="/usr/bin/ccx")
     ap.add_argument("--order", type=int, choices=[1, 2], default=1,
                     help="1: C3D4 on the tetrahedra; 2: C3D10, the same with mid-side nodes")
+    ap.add_argument("--max-error", type=float, default=None,
+                    help="tetcheck: exit 1 when the relative error exceeds this")
     a = ap.parse_args(argv)
     import tempfile
     work = a.work or tempfile.mkdtemp(prefix="fsm_tet_")
     if a.command == "tetcheck":
-        rows, rel = tet_selfcheck(work, a.nu if a.nu is not None else 0.49, a.E, a.ccx)
-        print(json.dumps({"check": "uniaxial strain, 2 x 2 x 1 mm, C3D4", "max_relative_error": rel,
+        rows, rel = tet_selfcheck(work, a.nu if a.nu is not None else 0.49, a.E, a.ccx, a.order)
+        print(json.dumps({"check": "uniaxial strain, 2 x 2 x 1 mm, "
+                          + ("C3D4" if a.order == 1 else "C3D10"), "max_relative_error": rel,
                           "rows_d_Fccx_Fexact_Fsmallstrain": rows}))
+        if a.max_error is not None and not rel <= a.max_error:
+            sys.exit(f"tetcheck: relative error {rel:.3g} above {a.max_error:g}")
         return
     if a.model is None or a.case is None or a.nu is None:
         ap.error("tetmesh needs MODEL CASE NU")
