@@ -79,6 +79,24 @@ TEST(SphereModelTetrahedra, AreCheckedWhenAdded) {
   EXPECT_THROW(m.set_region_law(7, ForceLaw::links), Error);
 }
 
+TEST(Continuum, InverseCubeRootSquaredMatchesLibm) {
+  // Every volume ratio the law evaluates (J >= j_min = 0.2; strongly stretched up to 1e3) and
+  // below: within 1e-15 of 1 / cbrt(x^2); exact at 1 (zero energy at rest) and at powers of 8.
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> exponent(-3.0, 3.0);
+  double worst = 0;
+  for (int k = 0; k < 100000; ++k) {
+    const double x = std::pow(10.0, exponent(rng));
+    const double exact = 1.0 / std::cbrt(x * x);
+    worst = std::max(worst, std::abs(detail::inverse_cbrt_squared(x) - exact) / exact);
+  }
+  EXPECT_LT(worst, 1e-15);
+  EXPECT_EQ(detail::inverse_cbrt_squared(1.0), 1.0);
+  EXPECT_EQ(detail::inverse_cbrt_squared(8.0), 0.25);
+  EXPECT_EQ(detail::inverse_cbrt_squared(0.125), 4.0);
+  EXPECT_NEAR(detail::inverse_cbrt_squared(0.2f), 1.0f / std::cbrt(0.04f), 1e-6f);
+}
+
 TEST(Continuum, LinksOfAContinuumRegionCarryNoForce) {
   SphereModel<double> m = continuum_block({2, 2, 2}, 0.005);
   ForceModel<double> f = no_gravity(m);

