@@ -81,33 +81,55 @@ TEST(WorkerPool, HandleCopiesMakeTheirOwnPool) {
   EXPECT_EQ(c.get(), nullptr);
 }
 
-// Twenty implicit steps on two threads (the link loops of the right-hand side, the diagonal and
-// every CG product scattered on the pool) end where one thread's do, to rounding (the buffers
-// are summed in another order): random masses, velocities and jittered links, bottom fixed.
+// Twenty implicit steps of `m` on `threads` threads (CG far below the comparisons' tolerance:
+// the threads sum in different orders, which must not move CG's last iteration); returns where
+// the nodes end, after checking that every step advanced and the model moved.
+Positions<double> twenty_steps(SphereModel<double> m, int threads, double quality = 0.3) {
+  Simulation<double>::Options o;
+  o.forces.threads = threads;
+  o.forces.drag = 5;
+  o.forces.element_tangent_quality = quality;
+  Simulation<double> sim(std::move(m), o);
+  ImplicitEulerIntegrator<double>::Options io;
+  io.tolerance = 1e-12;
+  io.max_iterations = 1000;
+  sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
+  for (int s = 0; s < 20; ++s) EXPECT_TRUE(sim.step(1e-3).advanced());
+  EXPECT_GT((sim.model().positions() - sim.model().rest_positions()).norm(), 1e-6);
+  return Positions<double>(sim.model().positions());
+}
+
+// Two threads (the link loops of the right-hand side, the diagonal and every CG product
+// scattered on the pool) end where one thread does, to rounding: random masses, velocities and
+// jittered links, bottom fixed; the model sags under gravity.
 TEST(WorkerPool, TwoThreadsStepLikeOne) {
   if (detail::max_threads() < 2) GTEST_SKIP() << "a machine with one hardware thread";
-  auto run = [](int threads) {
+  auto model = [] {
     std::mt19937 rng(5);
     SphereModel<double> m = random_model<double>(rng, {5, 4, 6}, 0.3, true);
-    for (Index i = 0; i < m.num_nodes(); ++i)
-      if (m.rest_positions()(i, 2) < 1e-9) m.set_fixed(i);
-    Simulation<double>::Options o;
-    o.forces.threads = threads;
-    o.forces.drag = 5;
-    Simulation<double> sim(std::move(m), o);
-    // CG far below the comparison's tolerance: the two sum in different orders, which must not
-    // move CG's last iteration.
-    ImplicitEulerIntegrator<double>::Options io;
-    io.tolerance = 1e-12;
-    io.max_iterations = 1000;
-    sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
-    for (int s = 0; s < 20; ++s) EXPECT_TRUE(sim.step(1e-3).advanced());
-    // How far the model moved (it sags under gravity), and where it is.
-    EXPECT_GT((sim.model().positions() - sim.model().rest_positions()).norm(), 1e-6);
-    return Positions<double>(sim.model().positions());
+    fix_below(m, 2);
+    return m;
   };
-  const Positions<double> one = run(1), two = run(2);
-  EXPECT_TRUE(matrices_near(one, two, 1e-9));
+  EXPECT_TRUE(matrices_near(twenty_steps(model(), 1), twenty_steps(model(), 2), 1e-9));
+}
+
+// The continuum law on two threads: its edge springs, element tangents and both volumetric
+// passes of every CG product on the pool (ForceModel::apply_implicit) step like one thread, to
+// rounding. Jittered nodes and random velocities strain the elements; with an element-tangent
+// quality of 1 every element takes the element tangent, so the dense share is split too.
+TEST(WorkerPool, TwoThreadsStepTheContinuumLawLikeOne) {
+  if (detail::max_threads() < 2) GTEST_SKIP() << "a machine with one hardware thread";
+  auto model = [] {
+    std::mt19937 rng(7);
+    SphereModel<double> m = random_model<double>(rng, {4, 3, 5}, 0.3, true);
+    m.set_region_law(0, ForceLaw::continuum);
+    fix_below(m, 2, 0.003);
+    return m;
+  };
+  for (const double quality : {0.3, 1.0})
+    EXPECT_TRUE(
+        matrices_near(twenty_steps(model(), 1, quality), twenty_steps(model(), 2, quality), 1e-9))
+        << "element tangent quality " << quality;
 }
 
 }  // namespace

@@ -120,7 +120,8 @@ class ForceModel {
     Vector3<Scalar> gravity{Scalar(0), Scalar(0), Scalar(-9.81)};
     /// How the dashpots see relative velocity (VoigtLink).
     DampingModel damping{DampingModel::along_link};
-    /// Threads for the link loops (at most the machine's hardware threads): more than 1 starts a
+    /// Threads for the link loops and the continuum law's implicit products (at most the
+    /// machine's hardware threads; the element forces and energy stay serial): more than 1 starts a
     /// persistent pool of threads - 1 helpers when the options are set (never inside a step); a
     /// helper spins for 2 ms after each loop, so at 1 kHz it keeps a second core busy while the
     /// simulation runs, and sleeps when it stops.
@@ -350,7 +351,8 @@ class ForceModel {
   Scalar m_implicit_h{0};
   std::vector<Scalar> m_external;
   ScalarArray<Scalar> m_inverse_mass;
-  std::vector<std::vector<Scalar>> m_scratch;  // one buffer of 3 |V| per pool thread
+  std::vector<std::vector<Scalar>> m_scratch;       // one buffer of 3 |V| per pool thread
+  std::vector<std::vector<Scalar>> m_node_scratch;  // one buffer of |V| per pool thread
   detail::PoolHandle m_pool;
   std::vector<PenaltyContact<Scalar>> m_contacts;
   Index m_num_contacts{0};

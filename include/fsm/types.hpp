@@ -7,6 +7,16 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 
+/// Inlines a small helper of a hot loop whatever the compiler's budget (GCC stopped inlining the
+/// continuum law's volume gradient when its class grew, costing 8 % of the step).
+#if defined(__GNUC__) || defined(__clang__)
+#define FSM_ALWAYS_INLINE inline __attribute__((always_inline))
+#elif defined(_MSC_VER)
+#define FSM_ALWAYS_INLINE __forceinline
+#else
+#define FSM_ALWAYS_INLINE inline
+#endif
+
 namespace fsm {
 
 /// @brief Index of a node, link or region. 32 bits: a model of 2^31 links would not fit the

@@ -32,6 +32,7 @@
 #include <limits>
 #include <tuple>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "fsm/sphere_model.hpp"
@@ -632,19 +633,42 @@ class ContinuumTerm {
   /// y += A_continuum p for the tangent prepared by prepare_implicit().
   void apply_implicit(const Scalar* p, Scalar* y) noexcept {
     if (empty()) return;
-    for (std::size_t e = 0; e < num_edges(); ++e) {
-      const Scalar* B = &m_edge_block[4 * e];
-      const Index i = m_edges[2 * e], j = m_edges[2 * e + 1];
-      const std::ptrdiff_t a = 3 * std::ptrdiff_t(i), b = 3 * std::ptrdiff_t(j);
-      const Scalar s = B[3] * (B[0] * (p[b] - p[a]) + B[1] * (p[b + 1] - p[a + 1]) +
-                               B[2] * (p[b + 2] - p[a + 2]));
-      for (int c = 0; c < 3; ++c) {
-        y[a + c] -= s * B[c];
-        y[b + c] += s * B[c];
-      }
-    }
+    apply_edges(0, num_edges(), p, y);
     apply_volumetric(p, y, [&](Index a) { return m_node_coefficient[std::size_t(a)]; });
     for (std::size_t k = 0; k < m_dense.size(); ++k) apply_element(k, p, y, m_dense_coefficient[k]);
+  }
+
+  /// apply_implicit() on T threads, in three phases with a barrier between them (the caller's
+  /// pool runs): phase 1, share t: the edges' and element tangents' share into y_t and the
+  /// volumetric first pass into s_t (both zeroed by the caller); phase 2, nodes [begin, end):
+  /// the nodal sums of the T buffers s, scaled by the nodes' coefficients; phase 3, share t: the
+  /// volumetric second pass into y_t. The caller then adds the y_t. Same products as
+  /// apply_implicit(), summed in another order.
+  void apply_implicit_phase1(const Scalar* p, Scalar* y_t, Scalar* s_t, int t,
+                             int T) const noexcept {
+    if (empty()) return;
+    const auto [e0, e1] = share(num_edges(), t, T);
+    apply_edges(e0, e1, p, y_t);
+    const auto [t0, t1] = share(m_volume.size(), t, T);
+    volumetric_spread(t0, t1, p, s_t);
+    const auto [k0, k1] = share(m_dense.size(), t, T);
+    for (std::size_t k = k0; k < k1; ++k) apply_element(k, p, y_t, m_dense_coefficient[k]);
+  }
+  /// Phase 2 of apply_implicit_phase1(): `s` holds the T threads' buffers.
+  void apply_implicit_phase2(const std::vector<std::vector<Scalar>>& s, int T, Index begin,
+                             Index end) noexcept {
+    if (empty()) return;
+    for (Index a = begin; a < end; ++a) {
+      Scalar sum(0);
+      for (int b = 0; b < T; ++b) sum += s[std::size_t(b)][std::size_t(a)];
+      m_node_scratch[std::size_t(a)] = sum * m_node_coefficient[std::size_t(a)];
+    }
+  }
+  /// Phase 3 of apply_implicit_phase1().
+  void apply_implicit_phase3(Scalar* y_t, int t, int T) const noexcept {
+    if (empty()) return;
+    const auto [t0, t1] = share(m_volume.size(), t, T);
+    volumetric_gather(t0, t1, m_node_scratch.data(), y_t);
   }
 
   /// Conservative bound of the element term's stiffness per node (N/m): Gershgorin row sums of
@@ -893,12 +917,14 @@ class ContinuumTerm {
     }
     add(y, id[0], f0);
   }
-  static void load_edges(const Scalar* x, const Index* id, Matrix3<Scalar>& Ds) noexcept {
+  FSM_ALWAYS_INLINE static void load_edges(const Scalar* x, const Index* id,
+                                           Matrix3<Scalar>& Ds) noexcept {
     const Vector3<Scalar> o = row(x, id[0]);
     for (int k = 0; k < 3; ++k) Ds.col(k) = row(x, id[k + 1]) - o;
   }
   /// d(volume)/dx of the four nodes: (1/6) e2 x e3, e3 x e1, e1 x e2, and minus their sum.
-  static void volume_gradient(const Matrix3<Scalar>& Ds, Vector3<Scalar> g[4]) noexcept {
+  FSM_ALWAYS_INLINE static void volume_gradient(const Matrix3<Scalar>& Ds,
+                                                Vector3<Scalar> g[4]) noexcept {
     g[1] = Ds.col(1).cross(Ds.col(2)) / Scalar(6);
     g[2] = Ds.col(2).cross(Ds.col(0)) / Scalar(6);
     g[3] = Ds.col(0).cross(Ds.col(1)) / Scalar(6);
@@ -918,13 +944,29 @@ class ContinuumTerm {
       }
   }
 
-  // y += sum_a coefficient(a) (grad v_a . p) grad v_a, with the gradients of prepare_implicit().
-  template <typename Coefficient>
-  void apply_volumetric(const Scalar* p, Scalar* y, Coefficient coefficient) noexcept {
-    Scalar* s = m_node_scratch.data();
-    std::fill(s, s + m_num_nodes, Scalar(0));
-    const std::size_t nt = m_volume.size();
-    for (std::size_t t = 0; t < nt; ++t) {
+  // [begin, end) of `count` items for share t of T.
+  static std::pair<std::size_t, std::size_t> share(std::size_t count, int t, int T) noexcept {
+    return {count * std::size_t(t) / std::size_t(T), count * std::size_t(t + 1) / std::size_t(T)};
+  }
+  // The edge springs of [begin, end): y += B (p_j - p_i) on j, minus on i.
+  void apply_edges(std::size_t begin, std::size_t end, const Scalar* p, Scalar* y) const noexcept {
+    for (std::size_t e = begin; e < end; ++e) {
+      const Scalar* B = &m_edge_block[4 * e];
+      const std::ptrdiff_t a = 3 * std::ptrdiff_t(m_edges[2 * e]);
+      const std::ptrdiff_t b = 3 * std::ptrdiff_t(m_edges[2 * e + 1]);
+      const Scalar s = B[3] * (B[0] * (p[b] - p[a]) + B[1] * (p[b + 1] - p[a + 1]) +
+                               B[2] * (p[b + 2] - p[a + 2]));
+      for (int c = 0; c < 3; ++c) {
+        y[a + c] -= s * B[c];
+        y[b + c] += s * B[c];
+      }
+    }
+  }
+  // Volumetric first pass over the elements [begin, end): s_a += (grad v_T . p) / 4 at each of
+  // their nodes a (grad v_a . p, summed over a's elements, once every share is in).
+  void volumetric_spread(std::size_t begin, std::size_t end, const Scalar* p,
+                         Scalar* s) const noexcept {
+    for (std::size_t t = begin; t < end; ++t) {
       const Index* id = &m_tets[4 * t];
       const Scalar* g = &m_grad[12 * t];
       Scalar d(0);
@@ -935,8 +977,11 @@ class ContinuumTerm {
       d *= Scalar(0.25);
       for (int k = 0; k < 4; ++k) s[id[k]] += d;
     }
-    for (Index a = 0; a < m_num_nodes; ++a) s[a] *= coefficient(a);
-    for (std::size_t t = 0; t < nt; ++t) {
+  }
+  // Volumetric second pass over [begin, end): y += (mean of s over the element's nodes) grad v_T.
+  void volumetric_gather(std::size_t begin, std::size_t end, const Scalar* s,
+                         Scalar* y) const noexcept {
+    for (std::size_t t = begin; t < end; ++t) {
       const Index* id = &m_tets[4 * t];
       const Scalar* g = &m_grad[12 * t];
       const Scalar c = Scalar(0.25) * (s[id[0]] + s[id[1]] + s[id[2]] + s[id[3]]);
@@ -947,6 +992,16 @@ class ContinuumTerm {
         q[2] += c * g[3 * k + 2];
       }
     }
+  }
+
+  // y += sum_a coefficient(a) (grad v_a . p) grad v_a, with the gradients of prepare_implicit().
+  template <typename Coefficient>
+  void apply_volumetric(const Scalar* p, Scalar* y, Coefficient coefficient) noexcept {
+    Scalar* s = m_node_scratch.data();
+    std::fill(s, s + m_num_nodes, Scalar(0));
+    volumetric_spread(0, m_volume.size(), p, s);
+    for (Index a = 0; a < m_num_nodes; ++a) s[a] *= coefficient(a);
+    volumetric_gather(0, m_volume.size(), s, y);
   }
 
   Index m_num_nodes{0};

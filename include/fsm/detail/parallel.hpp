@@ -29,6 +29,18 @@ inline int max_threads() noexcept {
   return std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
 }
 
+/// Nodes [begin, end) of one thread's share of a scatter: out = init + the first T buffers.
+template <typename Scalar, typename NodeInit>
+void sum_buffers(Index begin, Index end, Scalar* out,
+                 const std::vector<std::vector<Scalar>>& scratch, int T, NodeInit&& init) noexcept {
+  for (Index i = begin; i < end; ++i) init(i, out + 3 * std::ptrdiff_t(i));
+  for (std::ptrdiff_t k = 3 * std::ptrdiff_t(begin); k < 3 * std::ptrdiff_t(end); ++k) {
+    Scalar s = out[k];
+    for (int b = 0; b < T; ++b) s += scratch[std::size_t(b)][std::size_t(k)];
+    out[k] = s;
+  }
+}
+
 /// out[3i..3i+2] = init(i) for every node, plus kernel(begin, end, buffer) over link ranges.
 /// With a pool of T threads, `scratch` must hold T buffers of 3 * num_nodes scalars.
 template <typename Scalar, typename NodeInit, typename LinkKernel>
@@ -48,14 +60,8 @@ void scatter_links(WorkerPool* pool, Index num_nodes, Index num_links, Scalar* o
     pool->run(links);
     auto nodes = [&](int t, int) {
       if (t >= T) return;
-      const Index begin = static_cast<Index>(std::int64_t(num_nodes) * t / T);
-      const Index end = static_cast<Index>(std::int64_t(num_nodes) * (t + 1) / T);
-      for (Index i = begin; i < end; ++i) init(i, out + 3 * std::ptrdiff_t(i));
-      for (std::ptrdiff_t k = 3 * std::ptrdiff_t(begin); k < 3 * std::ptrdiff_t(end); ++k) {
-        Scalar s = out[k];
-        for (int b = 0; b < T; ++b) s += scratch[std::size_t(b)][std::size_t(k)];
-        out[k] = s;
-      }
+      sum_buffers(static_cast<Index>(std::int64_t(num_nodes) * t / T),
+                  static_cast<Index>(std::int64_t(num_nodes) * (t + 1) / T), out, scratch, T, init);
     };
     pool->run(nodes);
     return;

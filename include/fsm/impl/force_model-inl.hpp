@@ -523,6 +523,8 @@ void ForceModel<Scalar>::resize_scratch() {
   m_pool.reset(threads);
   m_scratch.resize(threads > 1 ? std::size_t(threads) : 0);
   for (auto& s : m_scratch) s.assign(3 * std::size_t(m_num_nodes), Scalar(0));
+  m_node_scratch.resize(m_scratch.size());
+  for (auto& s : m_node_scratch) s.assign(std::size_t(m_num_nodes), Scalar(0));
 }
 
 template <typename Scalar>
@@ -869,9 +871,49 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
       if (lo < hi) kernel_range(lo, hi, out);
     }
   };
-  detail::scatter_links(m_pool.get(), model.num_nodes(), model.num_links(), y.data(), m_scratch,
-                        init, kernel);
-  m_continuum.apply_implicit(pp, y.data());
+  detail::WorkerPool* pool = m_pool.get();
+  const int T = pool ? std::min<int>(pool->size(), static_cast<int>(m_scratch.size())) : 1;
+  if (T > 1 && !m_continuum.empty()) {
+    // Links and elements together on the pool (ContinuumTerm::apply_implicit_phase1-3), then
+    // each thread sums its share of the nodes: y = M p + the T buffers.
+    const Index n = model.num_nodes(), nl = model.num_links();
+    const auto n3 = 3 * std::ptrdiff_t(n);
+    auto nodes = [&](int t) {
+      return std::pair<Index, Index>(static_cast<Index>(std::int64_t(n) * t / T),
+                                     static_cast<Index>(std::int64_t(n) * (t + 1) / T));
+    };
+    auto phase1 = [&](int t, int) {
+      if (t >= T) return;
+      Scalar* buf = m_scratch[std::size_t(t)].data();
+      Scalar* s = m_node_scratch[std::size_t(t)].data();
+      std::fill(buf, buf + n3, Scalar(0));
+      std::fill(s, s + n, Scalar(0));
+      kernel(static_cast<Index>(std::int64_t(nl) * t / T),
+             static_cast<Index>(std::int64_t(nl) * (t + 1) / T), buf);
+      m_continuum.apply_implicit_phase1(pp, buf, s, t, T);
+    };
+    pool->run(phase1);
+    auto phase2 = [&](int t, int) {
+      if (t >= T) return;
+      const auto [begin, end] = nodes(t);
+      m_continuum.apply_implicit_phase2(m_node_scratch, T, begin, end);
+    };
+    pool->run(phase2);
+    auto phase3 = [&](int t, int) {
+      if (t < T) m_continuum.apply_implicit_phase3(m_scratch[std::size_t(t)].data(), t, T);
+    };
+    pool->run(phase3);
+    auto sum = [&](int t, int) {
+      if (t >= T) return;
+      const auto [begin, end] = nodes(t);
+      detail::sum_buffers(begin, end, y.data(), m_scratch, T, init);
+    };
+    pool->run(sum);
+  } else {
+    detail::scatter_links(m_pool.get(), model.num_nodes(), model.num_links(), y.data(), m_scratch,
+                          init, kernel);
+    m_continuum.apply_implicit(pp, y.data());
+  }
   for (Index k = 0; k < m_num_contacts; ++k) {
     const PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
     if (!(c.normal_block > Scalar(0)) && !(c.tangent_block > Scalar(0))) continue;
