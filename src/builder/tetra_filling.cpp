@@ -60,22 +60,27 @@ struct SizeField {
 template <typename C3, typename D, typename Cr>
 C3 run_mesh_3(const D& domain, const Cr& criteria, const std::string& optimiser) {
   namespace P = CGAL::parameters;
-  // Fixed seed: a tetrahedral part builds to the same mesh every time.
+  // Fixed seed: a tetrahedral part builds to the same mesh every time. And no time limits: left
+  // unset, make_mesh_3 gives perturb() and exude() the wall time the refinement took as their
+  // limit, so a loaded machine stopped them earlier and the same scene built a different mesh
+  // (fsm_build_cli failed under parallel ctest; 32 of 120 builds differed with a busy core).
+  // 0 means none: they run until they cannot improve the mesh.
   CGAL::get_default_random() = CGAL::Random(0);
+  const auto perturb = P::perturb(P::time_limit = 0);
+  const auto exude = P::exude(P::time_limit = 0);
   if (optimiser == "none")
     return CGAL::make_mesh_3<C3>(domain, criteria, P::no_perturb(), P::no_exude());
   if (optimiser == "perturb")
-    return CGAL::make_mesh_3<C3>(domain, criteria, P::perturb(), P::no_exude());
-  if (optimiser == "exude")
-    return CGAL::make_mesh_3<C3>(domain, criteria, P::no_perturb(), P::exude());
+    return CGAL::make_mesh_3<C3>(domain, criteria, perturb, P::no_exude());
+  if (optimiser == "exude") return CGAL::make_mesh_3<C3>(domain, criteria, P::no_perturb(), exude);
   if (optimiser == "lloyd")
     return CGAL::make_mesh_3<C3>(domain, criteria, P::lloyd(P::max_iteration_number = 20),
-                                 P::no_perturb(), P::exude());
+                                 P::no_perturb(), exude);
   if (optimiser == "odt_perturb")
-    return CGAL::make_mesh_3<C3>(domain, criteria, P::odt(P::max_iteration_number = 20),
-                                 P::perturb(), P::exude());
+    return CGAL::make_mesh_3<C3>(domain, criteria, P::odt(P::max_iteration_number = 20), perturb,
+                                 exude);
   return CGAL::make_mesh_3<C3>(domain, criteria, P::odt(P::max_iteration_number = 20),
-                               P::no_perturb(), P::exude());
+                               P::no_perturb(), exude);
 }
 
 // Meshes `domain` with the builder's criteria (docs/builder.md), in the space where the metric is
