@@ -584,7 +584,9 @@ def tet_selfcheck(work, nu=0.49, E=13150.0, ccx="/usr/bin/ccx", order=1):
     """run_tet_mesh on a 2 x 2 x 1 mm block (2 x 2 x 1 cubes, 6 tetrahedra each) compressed by
     0.25 mm with every node held in x and y (C3D10's mid-height mid-side nodes too), so the
     deformation is homogeneous uniaxial strain, stretch l = 1 - d / 1 mm, which both element
-    orders represent exactly, and the exact force of ccx's neo-Hookean
+    orders represent exactly (a C3D10 mid-side node on the wrong edge makes ccx refuse the
+    element, a non-positive Jacobian, so the check also guards C3D10_EDGES), and the exact force
+    of ccx's neo-Hookean
     W = C10 (J^(-2/3) I1 - 3) + (J - 1)^2 / D1 is F = -A (4/3 C10 (l^(1/3) - l^(-5/3))
     + 2 (l - 1) / D1) (small strain: A M eps, M = E (1 - nu) / ((1 + nu)(1 - 2 nu))).
     Returns rows (d, F_ccx, F_exact, F_small_strain) and the largest relative difference."""

@@ -35,6 +35,7 @@
 #include <utility>
 #include <vector>
 
+#include "fsm/detail/parallel.hpp"
 #include "fsm/sphere_model.hpp"
 #include "fsm/types.hpp"
 
@@ -944,10 +945,6 @@ class ContinuumTerm {
       }
   }
 
-  // [begin, end) of `count` items for share t of T.
-  static std::pair<std::size_t, std::size_t> share(std::size_t count, int t, int T) noexcept {
-    return {count * std::size_t(t) / std::size_t(T), count * std::size_t(t + 1) / std::size_t(T)};
-  }
   // The edge springs of [begin, end): y += B (p_j - p_i) on j, minus on i.
   void apply_edges(std::size_t begin, std::size_t end, const Scalar* p, Scalar* y) const noexcept {
     for (std::size_t e = begin; e < end; ++e) {

@@ -6,7 +6,9 @@
 // links go straight into the output and no pool exists.
 
 #include <algorithm>
+#include <cstdint>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #if defined(__linux__)
@@ -27,6 +29,13 @@ inline int max_threads() noexcept {
   if (sched_getaffinity(0, sizeof set, &set) == 0) return std::max(1, CPU_COUNT(&set));
 #endif
   return std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+}
+
+/// [begin, end) of `count` items for share t of T: contiguous, in order, sizes within one.
+template <typename I>
+std::pair<I, I> share(I count, int t, int T) noexcept {
+  return {static_cast<I>(std::int64_t(count) * t / T),
+          static_cast<I>(std::int64_t(count) * (t + 1) / T)};
 }
 
 /// Nodes [begin, end) of one thread's share of a scatter: out = init + the first T buffers.
@@ -54,14 +63,14 @@ void scatter_links(WorkerPool* pool, Index num_nodes, Index num_links, Scalar* o
       if (t >= T) return;
       Scalar* buf = scratch[std::size_t(t)].data();
       std::fill(buf, buf + n3, Scalar(0));
-      kernel(static_cast<Index>(std::int64_t(num_links) * t / T),
-             static_cast<Index>(std::int64_t(num_links) * (t + 1) / T), buf);
+      const auto [begin, end] = share(num_links, t, T);
+      kernel(begin, end, buf);
     };
     pool->run(links);
     auto nodes = [&](int t, int) {
       if (t >= T) return;
-      sum_buffers(static_cast<Index>(std::int64_t(num_nodes) * t / T),
-                  static_cast<Index>(std::int64_t(num_nodes) * (t + 1) / T), out, scratch, T, init);
+      const auto [begin, end] = share(num_nodes, t, T);
+      sum_buffers(begin, end, out, scratch, T, init);
     };
     pool->run(nodes);
     return;

@@ -878,24 +878,20 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
     // each thread sums its share of the nodes: y = M p + the T buffers.
     const Index n = model.num_nodes(), nl = model.num_links();
     const auto n3 = 3 * std::ptrdiff_t(n);
-    auto nodes = [&](int t) {
-      return std::pair<Index, Index>(static_cast<Index>(std::int64_t(n) * t / T),
-                                     static_cast<Index>(std::int64_t(n) * (t + 1) / T));
-    };
     auto phase1 = [&](int t, int) {
       if (t >= T) return;
       Scalar* buf = m_scratch[std::size_t(t)].data();
       Scalar* s = m_node_scratch[std::size_t(t)].data();
       std::fill(buf, buf + n3, Scalar(0));
       std::fill(s, s + n, Scalar(0));
-      kernel(static_cast<Index>(std::int64_t(nl) * t / T),
-             static_cast<Index>(std::int64_t(nl) * (t + 1) / T), buf);
+      const auto [begin, end] = detail::share(nl, t, T);
+      kernel(begin, end, buf);
       m_continuum.apply_implicit_phase1(pp, buf, s, t, T);
     };
     pool->run(phase1);
     auto phase2 = [&](int t, int) {
       if (t >= T) return;
-      const auto [begin, end] = nodes(t);
+      const auto [begin, end] = detail::share(n, t, T);
       m_continuum.apply_implicit_phase2(m_node_scratch, T, begin, end);
     };
     pool->run(phase2);
@@ -905,7 +901,7 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
     pool->run(phase3);
     auto sum = [&](int t, int) {
       if (t >= T) return;
-      const auto [begin, end] = nodes(t);
+      const auto [begin, end] = detail::share(n, t, T);
       detail::sum_buffers(begin, end, y.data(), m_scratch, T, init);
     };
     pool->run(sum);
