@@ -11,10 +11,12 @@ protected) it runs fsm-indent at 150 mm/min for each case and law, and compares 
 reference/converged_<case>_nu<nu>.csv: the largest displacement difference at equal force (the
 paper's metric), the RMS force error, and the largest relative force error from 0.5 to 2.5 mm.
 
-- cases: bonded compression and the bonded 4 x 4 mm punch at nu = 0.49 and 0.45; the rigid 5 mm
-  ball through contact at nu = 0.49 (the only nu with a converged contact reference);
+- cases: bonded compression, the bonded 4 x 4 mm punch and the rigid 5 mm ball through contact,
+  each at nu = 0.49 and 0.45;
 - laws: the paper's link network (it has no Poisson's ratio: one run per case, scored against
-  each nu's reference) and the continuum law at each nu;
+  each nu's reference) and the continuum law at each nu; for the ball, also the continuum law
+  with the face contact (ContactOptions::face_contact);
+- --studies case:nu,... reruns only those studies and replaces their rows in the results;
 - same-mesh FEM (unless --no-fem; bonded cases only): CalculiX C3D4 and C3D10 (the same
   tetrahedra, straight mid-side nodes) on the exact mesh fsm-build makes from the scene
   (validation/fem.py). C3D4 against the converged reference is the discretisation error of
@@ -41,9 +43,12 @@ import fem  # noqa: E402
 import scenes  # noqa: E402
 import validate  # noqa: E402
 
-# (case, nu) pairs scored; the ball has a converged reference at nu = 0.49 only.
+# (case, nu) pairs scored.
 STUDIES = [("compression", 0.49), ("compression", 0.45), ("punch", 0.49), ("punch", 0.45),
-           ("sphere", 0.49)]
+           ("sphere", 0.49), ("sphere", 0.45)]
+# The laws run per case: the ball also with the face contact (fsm-indent --contact faces).
+LAWS = {"compression": ("links", "continuum"), "punch": ("links", "continuum"),
+        "sphere": ("links", "continuum", "continuum+faces")}
 BONDED = ("compression", "punch")
 
 
@@ -76,6 +81,9 @@ def main():
     ap.add_argument("--no-fem", action="store_true", help="skip the same-mesh CalculiX runs")
     ap.add_argument("--reuse", action="store_true", help="keep curves already in --work")
     ap.add_argument("--ccx", default="/usr/bin/ccx")
+    ap.add_argument("--studies", default=None,
+                    help="only these studies, e.g. sphere:0.45,sphere:0.49; their rows replace "
+                         "those in results/continuum_sweep.json, the others are kept")
     ap.add_argument("--charts-only", action="store_true",
                     help="redraw the charts from results/continuum_sweep.json")
     a = ap.parse_args()
@@ -83,6 +91,12 @@ def main():
         with open(os.path.join(HERE, "results", "continuum_sweep.json")) as f:
             charts(json.load(f)["runs"])
         return
+    studies = STUDIES
+    if a.studies:
+        studies = [(c, float(n)) for c, n in (x.split(":") for x in a.studies.split(","))]
+        for st in studies:
+            if st not in STUDIES:
+                sys.exit(f"unknown study {st}")
     os.makedirs(a.work, exist_ok=True)
     box = os.path.join(a.work, "box.off")
     scenes.write_box_off(box)
@@ -96,17 +110,20 @@ def main():
         scene = os.path.join(a.work, f"r{r:g}.json")
         scenes.write_scene(scene, box, "tetrahedral", r, scenes.LINEAR)
         runs = {}  # (case, law, nu) -> (curve path, fsm-indent summary)
-        for case, nu in STUDIES:
-            for law in ("links", "continuum"):
-                key_nu = nu if law == "continuum" else None
+        for case, nu in studies:
+            for law in LAWS[case]:
+                key_nu = nu if law != "links" else None
                 if (case, law, key_nu) in runs:
                     continue
-                tag = f"{case}_{law}_r{r:g}" + (f"_nu{nu:g}" if law == "continuum" else "")
+                tag = f"{case}_{law.replace('+', '_')}_r{r:g}" + (
+                    f"_nu{nu:g}" if law != "links" else "")
                 out = os.path.join(a.work, tag + ".csv")
                 summary = os.path.join(a.work, tag + ".json")
                 if not (a.reuse and os.path.exists(out) and os.path.exists(summary)):
-                    p = subprocess.run([a.indent, scene, "--case", case, "--law", law, "--nu",
-                                        str(nu), "--speed", "150", "--out", out],
+                    p = subprocess.run([a.indent, scene, "--case", case, "--law",
+                                        law.split("+")[0], "--nu", str(nu), "--speed", "150",
+                                        "--contact", "faces" if law.endswith("+faces")
+                                        else "vertices", "--out", out],
                                        capture_output=True, text=True)
                     if p.returncode not in (0, 3):
                         sys.exit(f"fsm-indent failed: {p.stderr}")
@@ -114,9 +131,9 @@ def main():
                         f.write(p.stdout)
                 with open(summary) as f:
                     runs[(case, law, key_nu)] = (out, json.load(f))
-        for case, nu in STUDIES:
-            for law in ("links", "continuum"):
-                out, s = runs[(case, law, nu if law == "continuum" else None)]
+        for case, nu in studies:
+            for law in LAWS[case]:
+                out, s = runs[(case, law, nu if law != "links" else None)]
                 d, F = validate.read_curve(out)
                 record({"radius_mm": r, "case": case, "nu": nu, "law": law,
                         "spheres": s["spheres"], "tetrahedra": s.get("tetrahedra"),
@@ -129,7 +146,7 @@ def main():
         model = os.path.join(a.work, f"r{r:g}.fsm")
         subprocess.run([a.build, scene, "-o", model, "-q"], check=True, capture_output=True)
         P, T = fem.load_fsm_tets(model)
-        for case, nu in STUDIES:
+        for case, nu in studies:
             if case not in BONDED:
                 continue
             for order, element in ((1, "C3D4"), (2, "C3D10")):
@@ -152,15 +169,25 @@ def main():
                 record({"radius_mm": r, "case": case, "nu": nu, "law": element,
                         "spheres": len(P), "tetrahedra": len(T), **score(d, F, case, nu),
                         "ccx_seconds": seconds, "curve": out})
-    with open(os.path.join(HERE, "results", "continuum_sweep.json"), "w") as f:
-        json.dump({"command": "validation/continuum_sweep.py --radii " +
-                   " ".join(f"{r:g}" for r in a.radii) + (" --no-fem" if a.no_fem else ""),
-                   "date": time.strftime("%Y-%m-%d"), "runs": rows}, f, indent=1)
+    result = os.path.join(HERE, "results", "continuum_sweep.json")
+    command = "validation/continuum_sweep.py --radii " + " ".join(f"{r:g}" for r in a.radii) + (
+        " --no-fem" if a.no_fem else "") + (f" --studies {a.studies}" if a.studies else "")
+    if a.studies and os.path.exists(result):  # replace the rows of these studies, keep the rest
+        with open(result) as f:
+            old = json.load(f)
+        kept = [x for x in old["runs"] if (x["case"], x["nu"]) not in studies or
+                x["radius_mm"] not in a.radii]
+        rows = kept + rows
+        command = old["command"] + "; then " + command
+    with open(result, "w") as f:
+        json.dump({"command": command, "date": time.strftime("%Y-%m-%d"), "runs": rows}, f,
+                  indent=1)
     charts(rows)
 
 
 STYLE = {"links": ("o--", "tab:blue", "paper's link network"),
          "continuum": ("s-", "tab:red", "continuum law"),
+         "continuum+faces": ("D-.", "tab:purple", "continuum law, face contact"),
          "C3D4": ("^:", "tab:grey", "same-mesh C3D4 (CalculiX)"),
          "C3D10": ("v:", "tab:green", "same-mesh C3D10 (CalculiX)")}
 
@@ -174,7 +201,6 @@ def charts(rows):
     from matplotlib.ticker import NullFormatter
     fig, axes = plt.subplots(2, 3, figsize=(13, 8))
     axes = axes.ravel()
-    axes[-1].axis("off")
     for ax, (case, nu) in zip(axes, STUDIES):
         for law, (style, colour, name) in STYLE.items():
             pts = [x for x in ok if x["case"] == case and x["nu"] == nu and x["law"] == law]

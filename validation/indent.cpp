@@ -44,6 +44,7 @@ struct Args {
   std::string scene;
   std::string load_case = "compression";
   std::string law = "links";
+  std::string contact = "vertices";  // how the contact indenters meet the block
   double nu = 0.49;
   double depth = 2.5e-3;     // m
   double speed = 5e-3 / 60;  // m/s
@@ -74,6 +75,11 @@ Args parse(int argc, char** argv) {
   app.add_option("scene", a.scene, "a one-part scene (JSON)")->required();
   app.add_option("--case", a.load_case, "the load")
       ->check(CLI::IsMember({"compression", "punch", "sphere", "cylinder"}))
+      ->capture_default_str();
+  app.add_option("--contact", a.contact,
+                 "contact cases: the block meets the tool at its vertices or at sample points on "
+                 "its boundary faces (ContactOptions::face_contact)")
+      ->check(CLI::IsMember({"vertices", "faces"}))
       ->capture_default_str();
   app.add_option("--law", a.law, "force law")
       ->check(CLI::IsMember({"links", "continuum"}))
@@ -186,8 +192,11 @@ int run(const Args& a) {
   opt.integrator = a.integrator;
   opt.forces.gravity.setZero();
   Simulation<double> sim(std::move(model), opt);
-  // The contact indenters: frictionless, as a user's instrument (default ContactOptions).
-  collision::ContactSolver<double> contacts(sim.model(), sim.forces());
+  // The contact indenters: frictionless, as a user's instrument (default ContactOptions but for
+  // --contact).
+  collision::ContactOptions<double> contact_options;
+  contact_options.face_contact = a.contact == "faces";
+  collision::ContactSolver<double> contacts(sim.model(), sim.forces(), contact_options);
   collision::Instrument<double> tool;
   tool.friction = 0;
   const double radius = a.load_case == "sphere" ? 5e-3 : 3e-3;

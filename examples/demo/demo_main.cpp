@@ -6,7 +6,7 @@
 //
 //   fsm-demo [--seconds S] [--out DIR] [--model FILE.fsm|SCENE.json] [--json] [--no-render]
 //            [--stress [N]] [--realtime [PRIORITY]] [--threading lockstep|decoupled]
-//            [--export DIR [--export-hz HZ]] [--help] [--version]
+//            [--export DIR [--export-hz HZ]] [--contact vertices|faces] [--help] [--version]
 //
 // Field names of --json: docs/demo.md.
 
@@ -54,6 +54,7 @@ struct Args {
   double export_hz{10};
   std::string scenario{"probing"};
   double capsule_tear{0.2};
+  std::string contact{"faces"};  // how the probe meets tetrahedral parts
 };
 
 // Parses the command line (CLI11): returns the exit status when the program should stop there
@@ -90,6 +91,11 @@ int parse(int argc, char** argv, Args& a) {
                  "tick runs on its own thread against a local contact model and the simulation "
                  "on another (docs/haptics.md)")
       ->check(CLI::IsMember({"lockstep", "decoupled"}))
+      ->capture_default_str();
+  app.add_option("--contact", a.contact,
+                 "how the probe meets tetrahedral parts: vertices (their sphere centres) or faces "
+                 "(sample points on their boundary faces; ContactOptions::face_contact)")
+      ->check(CLI::IsMember({"vertices", "faces"}))
       ->capture_default_str();
   app.add_option(
          "--scenario", a.scenario,
@@ -192,7 +198,9 @@ int main(int argc, char** argv) {
     ImplicitEulerIntegrator<double>::Options io;
     io.tolerance = 1e-3;
     sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
-    collision::ContactSolver<double> contacts(sim.model(), sim.forces());
+    collision::ContactOptions<double> co;
+    co.face_contact = args.contact == "faces";
+    collision::ContactSolver<double> contacts(sim.model(), sim.forces(), co);
     const double shaft_r = 0.0025, half = 0.02;
     collision::Instrument<double> tool;
     tool.name = "probe";

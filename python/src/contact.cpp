@@ -120,7 +120,7 @@ instrument; what a haptic device renders (its negative is what the instrument ap
 ContactOptions(stiffness_ratio=100, damping_ratio=0.5, friction_speed=1e-3,
                tetrahedral_surface=True, part_contact=True, self_contact=False, part_friction=0,
                max_contacts=4096, spatial_hash=True, verlet_skin=0.002, part_stiffness_ratio=1,
-               part_contact_onset=0.1)
+               part_contact_onset=0.1, face_contact=False, face_sample_spacing=0.001)
 
 stiffness_ratio: penalty stiffness as a multiple of the sphere's own tissue stiffness (the row sum
 of its links' and elements' rest stiffness), so the penetration is a fixed small share of the
@@ -134,12 +134,18 @@ radius; False: every sphere at its radius (the paper's contact). part_contact: s
 regions collide; self_contact: spheres of one region far apart at rest collide (folding).
 part_friction: Coulomb coefficient between parts. max_contacts: length of the contact list.
 spatial_hash: False tests every sphere (the reference). verlet_skin (m): slack of the part-contact
-pair list. Validated when a ContactSolver is made.)")
+pair list. face_contact: with tetrahedral_surface, instruments meet tetrahedral parts through sample
+points on their boundary faces (at most face_sample_spacing apart, m) instead of at the vertices,
+so a probe smaller than the vertex spacing cannot slip between vertices. Validated when a
+ContactSolver is made.)")
       .def(py::init([](Scalar stiffness_ratio, Scalar damping_ratio, Scalar friction_speed,
                        bool tetrahedral_surface, bool part_contact, bool self_contact,
                        Scalar part_friction, Index max_contacts, bool spatial_hash,
-                       Scalar verlet_skin, Scalar part_stiffness_ratio, Scalar part_contact_onset) {
+                       Scalar verlet_skin, Scalar part_stiffness_ratio, Scalar part_contact_onset,
+                       bool face_contact, Scalar face_sample_spacing) {
              Options o;
+             o.face_contact = face_contact;
+             o.face_sample_spacing = face_sample_spacing;
              o.part_contact_onset = part_contact_onset;
              o.stiffness_ratio = stiffness_ratio;
              o.part_stiffness_ratio = part_stiffness_ratio;
@@ -159,7 +165,8 @@ pair list. Validated when a ContactSolver is made.)")
            py::arg("part_contact") = true, py::arg("self_contact") = false,
            py::arg("part_friction") = 0.0, py::arg("max_contacts") = 4096,
            py::arg("spatial_hash") = true, py::arg("verlet_skin") = 0.002,
-           py::arg("part_stiffness_ratio") = 1.0, py::arg("part_contact_onset") = 0.1)
+           py::arg("part_stiffness_ratio") = 1.0, py::arg("part_contact_onset") = 0.1,
+           py::arg("face_contact") = false, py::arg("face_sample_spacing") = 0.001)
       .def_readwrite("stiffness_ratio", &Options::stiffness_ratio,
                      "contact stiffness / the sphere's tissue stiffness")
       .def_readwrite("part_stiffness_ratio", &Options::part_stiffness_ratio,
@@ -178,7 +185,11 @@ pair list. Validated when a ContactSolver is made.)")
                      "length of the contact list (allocated once)")
       .def_readwrite("spatial_hash", &Options::spatial_hash,
                      "False tests every sphere (the reference the tests compare with)")
-      .def_readwrite("verlet_skin", &Options::verlet_skin, "m");
+      .def_readwrite("verlet_skin", &Options::verlet_skin, "m")
+      .def_readwrite("face_contact", &Options::face_contact,
+                     "instruments meet tetrahedral parts at sample points on their boundary faces")
+      .def_readwrite("face_sample_spacing", &Options::face_sample_spacing,
+                     "m: largest spacing of a boundary face's sample points");
 
   // ---- the solver ------------------------------------------------------------------------------
   py::class_<Solver>(m, "ContactSolver",

@@ -4,6 +4,8 @@
 /// @brief ContactSolver: a spatial hash over the spheres, instrument-sphere and part-part contacts,
 /// penalty forces with damping and regularised Coulomb friction, and the wrench on each instrument.
 
+#include <array>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -89,6 +91,22 @@ struct ContactOptions {
   /// packings, which lie inside their surface) at their radius. False: every sphere at its radius
   /// (the paper's filled-sphere contact).
   bool tetrahedral_surface{true};
+  /// With tetrahedral_surface: instruments meet a tetrahedral part through its boundary faces
+  /// (true) rather than at its vertices only (false: the sphere centres). Each boundary face
+  /// carries sample points (the centroids of an m x m split of the face, m set by
+  /// `face_sample_spacing`); a sample inside an instrument is a penalty of pressure stiffness
+  /// \f$\kappa\f$ (N/m^3, interpolated from its vertices' \f$k_i / A_i\f$, \f$A_i\f$ a third of
+  /// the area of the vertex's boundary faces) over its share of the face's area, and its force
+  /// goes to the face's three vertices by its barycentric weights. Under a uniform press the
+  /// total stiffness is the vertices' own (the same as false); an instrument smaller than the
+  /// vertex spacing, or between vertices, still meets the surface, and the force changes
+  /// continuously as the instrument slides across faces (docs/physics.md section 8). Each vertex
+  /// gets one PenaltyContact per instrument: the sum of its samples' laws. Vertices not on a
+  /// boundary face (inside, or exposed by a cut) still meet instruments at their centres.
+  bool face_contact{false};
+  /// Largest spacing (m) of a boundary face's sample points: a face whose longest edge is e gets
+  /// ceil(e / spacing)^2 samples (at most 64).
+  Scalar face_sample_spacing{Scalar(0.001)};
   /// Contacts between spheres of different parts (regions).
   bool part_contact{true};
   /// Contacts between spheres of one part that are far apart at rest (more than twice their radii
@@ -214,6 +232,10 @@ class ContactSolver {
   template <typename Emit>
   void detect(const SphereModel<Scalar>& model, Emit&& emit) noexcept;
   void record_and_add(const PenaltyContact<Scalar>& c) noexcept;
+  void build_faces(const SphereModel<Scalar>& model);
+  // One instrument against the boundary faces of the nodes visited: accumulates per node.
+  void sample_face(const SphereModel<Scalar>& model, const Instrument<Scalar>& ins, Index f,
+                   const Vector3<Scalar>& lo, const Vector3<Scalar>& hi) noexcept;
 
   ContactOptions<Scalar> m_options;
   std::vector<Instrument<Scalar>> m_instruments;
@@ -230,6 +252,21 @@ class ContactSolver {
   // Per node: contact stiffness (N/m) and the radius it meets instruments with (m); the most
   // populous region (not scanned for part contact).
   std::vector<Scalar> m_k, m_contact_radius;
+  // Face contact (ContactOptions::face_contact): the tetrahedral parts' boundary faces at
+  // refresh() (vertices, owning tetrahedron, samples per side), each node's faces (CSR), whether
+  // a node meets instruments through its faces, its pressure stiffness (N/m^3), the longest
+  // boundary edge; per-compute scratch: a stamp per face, per-node accumulators, touched nodes.
+  std::vector<std::array<Index, 3>> m_faces;
+  std::vector<Index> m_face_tet;
+  std::vector<std::uint8_t> m_face_div;
+  std::vector<Index> m_node_face_start, m_node_faces;
+  std::vector<std::uint8_t> m_on_faces;
+  std::vector<Scalar> m_kappa;
+  Scalar m_max_face_edge{0};
+  std::vector<std::uint32_t> m_face_stamp;
+  std::uint32_t m_stamp{0};
+  std::vector<Scalar> m_face_acc;  // 10 per node: k, F (3), k delta, k delta p (3), k delta v_s
+  std::vector<Index> m_touched;
   Index m_dominant_region{-1};
   Scalar m_max_radius{0};
   std::vector<Contact<Scalar>> m_contacts;

@@ -19,9 +19,11 @@ ContactSolver<Scalar>::ContactSolver(const SphereModel<Scalar>& model,
       !(o.part_stiffness_ratio > 0) || !std::isfinite(o.part_stiffness_ratio) ||
       !(o.damping_ratio >= 0) || !std::isfinite(o.damping_ratio) || !(o.friction_speed > 0) ||
       !(o.part_friction >= 0) || !(o.part_contact_onset >= 0) || !(o.part_contact_onset < 1) ||
-      o.max_contacts < 1 || !(o.verlet_skin >= 0) || !std::isfinite(o.verlet_skin))
+      o.max_contacts < 1 || !(o.verlet_skin >= 0) || !std::isfinite(o.verlet_skin) ||
+      !(o.face_sample_spacing > 0) || !std::isfinite(o.face_sample_spacing))
     throw Error("", "contact options",
-                "stiffness_ratio, part_stiffness_ratio and friction_speed must be positive, "
+                "stiffness_ratio, part_stiffness_ratio, face_sample_spacing and friction_speed "
+                "must be positive, "
                 "damping_ratio and "
                 "part_friction non-negative, part_contact_onset in [0, 1), verlet_skin finite "
                 "and non-negative, max_contacts at least 1");
@@ -77,6 +79,7 @@ void ContactSolver<Scalar>::refresh(const SphereModel<Scalar>& model) {
   }
   m_dominant_region =
       count.empty() ? -1 : Index(std::max_element(count.begin(), count.end()) - count.begin());
+  build_faces(model);
   m_contacts.assign(std::size_t(m_options.max_contacts), Contact<Scalar>{});
   m_pairs.clear();
   m_pairs.reserve(32 * std::size_t(std::max<Index>(n, 1)));
@@ -84,6 +87,131 @@ void ContactSolver<Scalar>::refresh(const SphereModel<Scalar>& model) {
   m_list_valid = false;
   m_num_contacts = 0;
   m_wrenches.assign(m_instruments.size(), Wrench<Scalar>{});
+}
+
+template <typename Scalar>
+void ContactSolver<Scalar>::build_faces(const SphereModel<Scalar>& model) {
+  const Index n = model.num_nodes();
+  m_faces.clear();
+  m_face_tet.clear();
+  m_face_div.clear();
+  m_on_faces.assign(std::size_t(n), 0);
+  m_kappa.assign(std::size_t(n), Scalar(0));
+  m_node_face_start.assign(std::size_t(n) + 1, 0);
+  m_node_faces.clear();
+  m_face_acc.assign(11 * std::size_t(n), Scalar(0));
+  m_touched.clear();
+  m_touched.reserve(std::size_t(n));
+  m_max_face_edge = Scalar(0);
+  m_face_stamp.clear();
+  m_stamp = 0;
+  if (!m_options.tetrahedral_surface || !m_options.face_contact) return;
+  // A face of exactly one intact tetrahedron is on the boundary.
+  struct Key {
+    std::array<Index, 3> sorted, face;
+    Index tet;
+  };
+  static constexpr int k_face[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+  const auto tets = model.tetrahedra();
+  const auto intact = model.tetrahedron_intact();
+  std::vector<Key> keys;
+  keys.reserve(4 * std::size_t(model.num_tetrahedra()));
+  for (Index t = 0; t < model.num_tetrahedra(); ++t) {
+    if (!intact[t]) continue;
+    for (const auto& f : k_face) {
+      Key key{{}, {tets(t, f[0]), tets(t, f[1]), tets(t, f[2])}, t};
+      key.sorted = key.face;
+      std::sort(key.sorted.begin(), key.sorted.end());
+      keys.push_back(key);
+    }
+  }
+  std::sort(keys.begin(), keys.end(),
+            [](const Key& a, const Key& b) { return a.sorted < b.sorted; });
+  const auto rest = model.rest_positions();
+  std::vector<Scalar> area(std::size_t(n), Scalar(0));
+  for (std::size_t a = 0; a < keys.size();) {
+    std::size_t b = a + 1;
+    while (b < keys.size() && keys[b].sorted == keys[a].sorted) ++b;
+    if (b == a + 1) {
+      const auto& f = keys[a].face;
+      const Vector3<Scalar> p0 = rest.row(f[0]).transpose(), p1 = rest.row(f[1]).transpose(),
+                            p2 = rest.row(f[2]).transpose();
+      const Scalar edge = std::max({(p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm()});
+      const Scalar A = Scalar(0.5) * (p1 - p0).cross(p2 - p0).norm();
+      if (A > Scalar(0) && std::isfinite(A)) {
+        m_faces.push_back(f);
+        m_face_tet.push_back(keys[a].tet);
+        const Scalar div = std::ceil(edge / m_options.face_sample_spacing);
+        m_face_div.push_back(std::uint8_t(std::clamp(div, Scalar(1), Scalar(8))));
+        m_max_face_edge = std::max(m_max_face_edge, edge);
+        for (const Index v : f) {
+          area[std::size_t(v)] += A / Scalar(3);
+          ++m_node_face_start[std::size_t(v) + 1];
+        }
+      }
+    }
+    a = b;
+  }
+  for (std::size_t i = 0; i < std::size_t(n); ++i) m_node_face_start[i + 1] += m_node_face_start[i];
+  m_node_faces.assign(std::size_t(m_node_face_start.back()), 0);
+  std::vector<Index> fill(m_node_face_start.begin(), m_node_face_start.end() - 1);
+  for (std::size_t f = 0; f < m_faces.size(); ++f)
+    for (const Index v : m_faces[f]) m_node_faces[std::size_t(fill[std::size_t(v)]++)] = Index(f);
+  for (Index i = 0; i < n; ++i) {
+    if (!(area[std::size_t(i)] > Scalar(0))) continue;
+    m_on_faces[std::size_t(i)] = 1;
+    m_kappa[std::size_t(i)] = m_k[std::size_t(i)] / area[std::size_t(i)];
+  }
+  m_face_stamp.assign(m_faces.size(), 0);
+}
+
+template <typename Scalar>
+void ContactSolver<Scalar>::sample_face(const SphereModel<Scalar>& model,
+                                        const Instrument<Scalar>& ins, Index f,
+                                        const Vector3<Scalar>& lo,
+                                        const Vector3<Scalar>& hi) noexcept {
+  if (!model.tetrahedron_intact()[m_face_tet[std::size_t(f)]]) return;  // cut away since
+  const auto& v = m_faces[std::size_t(f)];
+  const auto x = model.positions();
+  const Vector3<Scalar> p0 = x.row(v[0]).transpose(), p1 = x.row(v[1]).transpose(),
+                        p2 = x.row(v[2]).transpose();
+  const Vector3<Scalar> fmin = p0.cwiseMin(p1).cwiseMin(p2), fmax = p0.cwiseMax(p1).cwiseMax(p2);
+  if ((fmax.array() < lo.array()).any() || (fmin.array() > hi.array()).any()) return;
+  const int m = m_face_div[std::size_t(f)];
+  const Scalar share = Scalar(0.5) * (p1 - p0).cross(p2 - p0).norm() / Scalar(m * m);
+  const Scalar kappa[3] = {m_kappa[std::size_t(v[0])], m_kappa[std::size_t(v[1])],
+                           m_kappa[std::size_t(v[2])]};
+  auto sample = [&](Scalar u, Scalar w) {  // barycentric (1 - u - w, u, w)
+    const Scalar b[3] = {Scalar(1) - u - w, u, w};
+    const Vector3<Scalar> q = b[0] * p0 + b[1] * p1 + b[2] * p2;
+    ++m_narrow_tests;
+    const auto hit = contact(ins.shape, ins.pose, q, Scalar(0));
+    if (!hit || !(hit->depth > Scalar(0)) || !hit->normal.allFinite() || !hit->point.allFinite())
+      return;
+    const Scalar kq = share * (b[0] * kappa[0] + b[1] * kappa[1] + b[2] * kappa[2]);
+    const Vector3<Scalar> vs =
+        ins.linear_velocity + ins.angular_velocity.cross(hit->point - ins.pose.position);
+    for (int c = 0; c < 3; ++c) {
+      const Scalar k = b[c] * kq;
+      if (!(k > Scalar(0))) continue;
+      Scalar* a = m_face_acc.data() + 11 * std::ptrdiff_t(v[std::size_t(c)]);
+      if (a[0] == Scalar(0)) m_touched.push_back(v[std::size_t(c)]);
+      const Scalar kd = k * hit->depth;
+      a[0] += k;
+      for (int d = 0; d < 3; ++d) {
+        a[1 + d] += kd * hit->normal[d];
+        a[5 + d] += kd * hit->point[d];
+        a[8 + d] += kd * vs[d];
+      }
+      a[4] += kd;
+    }
+  };
+  // The centroids of the m x m split: upright sub-triangles, then the inverted ones.
+  const Scalar h = Scalar(1) / Scalar(m);
+  for (int i = 0; i < m; ++i)
+    for (int j = 0; i + j < m; ++j) sample((Scalar(i) + Scalar(1) / 3) * h, (Scalar(j) + Scalar(1) / 3) * h);
+  for (int i = 0; i + 1 < m; ++i)
+    for (int j = 0; i + j + 1 < m; ++j) sample((Scalar(i) + Scalar(2) / 3) * h, (Scalar(j) + Scalar(2) / 3) * h);
 }
 
 template <typename Scalar>
@@ -270,15 +398,34 @@ void ContactSolver<Scalar>::detect(const SphereModel<Scalar>& model, Emit&& emit
   const Scalar* xp = x.data();
   const Scalar* vp = v.data();
 
-  // Instruments against spheres.
+  // Instruments against spheres (and the boundary faces of tetrahedral parts: a face that meets
+  // the instrument has a vertex within its longest edge of the instrument's box).
+  const bool faces = !m_faces.empty();
   for (std::size_t k = 0; k < m_instruments.size(); ++k) {
     const Instrument<Scalar>& ins = m_instruments[k];
     if (!ins.enabled) continue;
-    auto [lo, hi] = bounding_box(ins.shape, ins.pose);
-    lo.array() -= m_max_radius;
-    hi.array() += m_max_radius;
+    const auto [box_lo, box_hi] = bounding_box(ins.shape, ins.pose);
+    const Scalar margin = std::max(m_max_radius, faces ? Scalar(2) * m_max_face_edge : Scalar(0));
+    const Vector3<Scalar> lo = box_lo.array() - margin, hi = box_hi.array() + margin;
+    if (faces && ++m_stamp == 0) {  // the stamps wrapped: start again
+      std::fill(m_face_stamp.begin(), m_face_stamp.end(), 0u);
+      m_stamp = 1;
+    }
     for_each_in_box(lo, hi, [&](Index j) {
       ++m_candidates;
+      if (faces && m_on_faces[std::size_t(j)]) {
+        for (Index q = m_node_face_start[std::size_t(j)]; q < m_node_face_start[std::size_t(j) + 1];
+             ++q) {
+          const Index f = m_node_faces[std::size_t(q)];
+          if (m_face_stamp[std::size_t(f)] == m_stamp) continue;
+          m_face_stamp[std::size_t(f)] = m_stamp;
+          sample_face(model, ins, f, box_lo, box_hi);
+        }
+        return;
+      }
+      if (faces && ((x.row(j).transpose() - box_lo).minCoeff() < -m_max_radius ||
+                    (box_hi - x.row(j).transpose()).minCoeff() < -m_max_radius))
+        return;  // only in the margin the faces need
       ++m_narrow_tests;
       const Vector3<Scalar> c = x.row(j).transpose();
       const auto hit = contact(ins.shape, ins.pose, c, m_contact_radius[std::size_t(j)]);
@@ -302,6 +449,33 @@ void ContactSolver<Scalar>::detect(const SphereModel<Scalar>& model, Emit&& emit
       if (!pc.normal.allFinite() || !pc.point.allFinite()) return;
       emit(pc);
     });
+    // Each face vertex the instrument's samples reached: one contact, the sum of their laws
+    // (stiffness sum k, force sum k delta n; its depth and normal are those of that force).
+    for (const Index j : m_touched) {
+      Scalar* a = m_face_acc.data() + 11 * std::ptrdiff_t(j);
+      const Vector3<Scalar> F(a[1], a[2], a[3]);
+      const Scalar Fn = F.norm();
+      if (Fn > Scalar(0) && a[0] > Scalar(0) && a[4] > Scalar(0)) {
+        PenaltyContact<Scalar> pc;
+        pc.node = j;
+        pc.instrument = Index(k);
+        pc.normal = F / Fn;
+        pc.depth = Fn / a[0];
+        pc.point = Vector3<Scalar>(a[5], a[6], a[7]) / a[4];
+        pc.stiffness = a[0];
+        pc.damping = Scalar(2) * zeta * std::sqrt(pc.stiffness * mass[j]);
+        pc.friction = ins.friction;
+        pc.friction_speed = m_options.friction_speed;
+        pc.surface_velocity = Vector3<Scalar>(a[8], a[9], a[10]) / a[4];
+        pc.node_start = x.row(j).transpose();
+        Scalar fn;
+        Vector3<Scalar> slip;
+        pc.force = fsm::detail::contact_force(pc, xp, vp, Scalar(0), fn, slip);
+        if (pc.normal.allFinite() && pc.point.allFinite() && std::isfinite(pc.depth)) emit(pc);
+      }
+      std::fill(a, a + 11, Scalar(0));
+    }
+    m_touched.clear();
   }
 
   // Parts against parts (and folding within a part, when asked).
