@@ -20,7 +20,7 @@ cd "$(dirname "${BASH_SOURCE[0]}")/.."
 # Every dependency is a Debian package (no network besides Debian's archive).
 PACKAGES=(
   build-essential cmake ninja-build ccache pkg-config git
-  libeigen3-dev libccd-dev
+  libeigen3-dev libccd-dev libxsimd-dev
   libcgal-dev libgmp-dev libmpfr-dev libboost-dev nlohmann-json3-dev libcli11-dev libassimp-dev
   libgtest-dev libgmock-dev libbenchmark-dev libbullet-dev
   python3 python3-dev pybind11-dev python3-numpy python3-pytest

@@ -135,6 +135,10 @@ class ForceModel {
     /// implicit solve instead of springs along their edges, which cannot resist a sliver's apex
     /// moving across its base (docs/physics.md section 11). 0 = none, above 1 = every element
     /// (each costs about five times its edge springs per solver iteration).
+    /// Evaluate the link forces with the SIMD kernel when the CPU has one (AVX2 with FMA; double
+    /// only: detail/simd_links.hpp); false: the scalar loop, the reference. Both give the same
+    /// forces to rounding.
+    bool simd{true};
     Scalar element_tangent_quality{
         Scalar(detail::ContinuumTerm<Scalar>::default_element_tangent_quality)};
   };
@@ -350,6 +354,7 @@ class ForceModel {
   std::vector<std::pair<Index, Index>> m_ranges;
   Scalar m_implicit_h{0};
   std::vector<Scalar> m_external;
+  std::vector<double> m_x4, m_v4;  // positions and velocities, 4 per node, for the SIMD kernel
   ScalarArray<Scalar> m_inverse_mass;
   std::vector<std::vector<Scalar>> m_scratch;       // one buffer of 3 |V| per pool thread
   std::vector<std::vector<Scalar>> m_node_scratch;  // one buffer of |V| per pool thread

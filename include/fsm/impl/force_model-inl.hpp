@@ -4,8 +4,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <type_traits>
 
 #include "fsm/detail/parallel.hpp"
+#include "fsm/detail/simd_links.hpp"
 
 namespace fsm {
 
@@ -419,6 +421,10 @@ void ForceModel<Scalar>::refresh(const SphereModel<Scalar>& model) {
   m_element_force.assign(m_continuum.empty() ? 0 : 3 * std::size_t(n), Scalar(0));
   m_base_rhs.assign(3 * std::size_t(n), Scalar(0));
   m_base_diagonal.assign(3 * std::size_t(n), Scalar(0));
+  if constexpr (std::is_same_v<Scalar, double>) {
+    m_x4.assign(4 * std::size_t(n), 0.0);
+    m_v4.assign(4 * std::size_t(n), 0.0);
+  }
   m_base_h = Scalar(-1);
   // Contacts name nodes of the old model: forget them; keep (at least 1024 of) the capacity.
   clear_contacts();
@@ -550,8 +556,30 @@ void ForceModel<Scalar>::evaluate(const SphereModel<Scalar>& model, const ConstP
   };
   const bool bilinear = model.has_bilinear_links();
   const DampingModel dm = m_options.damping;
+  detail::simd::LinkForceKernel simd_kernel = nullptr;
+  detail::simd::LinkArrays simd_links{};
+  if constexpr (std::is_same_v<Scalar, double>) {
+    if (m_options.simd && m_x4.size() == 4 * std::size_t(model.num_nodes()))
+      simd_kernel = detail::simd::link_force_kernel(bilinear, dm == DampingModel::along_link);
+    if (simd_kernel) {  // one load per node: x, y, z padded to four
+      simd_links = {L.ij, L.rest, L.ks, L.kd, L.kl, L.es};
+      for (Index i = 0; i < model.num_nodes(); ++i) {
+        const std::ptrdiff_t k = 3 * std::ptrdiff_t(i), q = 4 * std::ptrdiff_t(i);
+        for (int c = 0; c < 3; ++c) {
+          m_x4[std::size_t(q + c)] = xp[k + c];
+          m_v4[std::size_t(q + c)] = vp[k + c];
+        }
+      }
+    }
+  }
   auto kernel_range = [&](Index begin, Index end, Scalar* out) {
     using DM = DampingModel;
+    if constexpr (std::is_same_v<Scalar, double>) {
+      if (simd_kernel) {
+        simd_kernel(simd_links, m_x4.data(), m_v4.data(), out, begin, end);
+        return;
+      }
+    }
     if (bilinear) {
       if (dm == DM::along_link)
         detail::accumulate_link_forces<Scalar, true, DM::along_link>(L, xp, vp, out, begin, end);

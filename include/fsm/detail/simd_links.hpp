@@ -1,0 +1,33 @@
+#pragma once
+
+// The link force loop on SIMD registers (xsimd), chosen at run time for the CPU. A plain interface
+// (no Eigen, no templates) so that the kernels' translation units, compiled for their instruction
+// set, share no inline code with the rest of the library. ForceModel<double>::evaluate uses it
+// when Options::simd is set and the CPU has a kernel; the scalar loop (accumulate_link_forces)
+// stays the reference the tests compare with.
+
+#include <cstdint>
+
+namespace fsm::detail::simd {
+
+/// Raw views of the link arrays: `ij` holds (i, j) per link.
+struct LinkArrays {
+  const std::int32_t* ij;
+  const double *rest, *ks, *kd, *kl, *es;
+};
+
+/// Accumulates the Voigt forces of links [begin, end) into `out` (3 per node: F_i += F,
+/// F_j -= F), as detail::accumulate_link_forces does. `x4` and `v4` hold 4 doubles per node
+/// (x, y, z, any), so that one load reads a node.
+using LinkForceKernel = void (*)(const LinkArrays& links, const double* x4, const double* v4,
+                                 double* out, std::int32_t begin, std::int32_t end);
+
+/// The kernel for this CPU, or nullptr (no SIMD build, or a CPU without AVX2 and FMA).
+/// `bilinear`: the modulus switches at a finite strain; `along_link`: DampingModel::along_link
+/// (else full_relative_velocity).
+LinkForceKernel link_force_kernel(bool bilinear, bool along_link) noexcept;
+
+/// The instruction set of the kernels link_force_kernel() returns ("avx2+fma"), or "none".
+const char* instruction_set() noexcept;
+
+}  // namespace fsm::detail::simd

@@ -1,0 +1,28 @@
+// Run-time choice of the link kernels (compiled with the library's baseline flags: it must run on
+// any x86-64 CPU, so it only asks the CPU what it has).
+
+#include "fsm/detail/simd_links.hpp"
+
+namespace fsm::detail::simd {
+
+#if defined(FSM_SIMD_AVX2)
+LinkForceKernel avx2_link_force_kernel(bool bilinear, bool along_link) noexcept;
+
+namespace {
+bool has_avx2_fma() noexcept {
+  static const bool yes = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+  return yes;
+}
+}  // namespace
+
+LinkForceKernel link_force_kernel(bool bilinear, bool along_link) noexcept {
+  return has_avx2_fma() ? avx2_link_force_kernel(bilinear, along_link) : nullptr;
+}
+
+const char* instruction_set() noexcept { return has_avx2_fma() ? "avx2+fma" : "none"; }
+#else
+LinkForceKernel link_force_kernel(bool, bool) noexcept { return nullptr; }
+const char* instruction_set() noexcept { return "none"; }
+#endif
+
+}  // namespace fsm::detail::simd
