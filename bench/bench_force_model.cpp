@@ -10,6 +10,7 @@ void BM_ForceEvaluation(benchmark::State& state) {
   const SphereModel<Scalar> model = lattice_model<Scalar>(int(state.range(0)), state.range(2) != 0);
   typename ForceModel<Scalar>::Options o;
   o.threads = int(state.range(1));
+  o.simd = state.range(3) != 0;
   ForceModel<Scalar> forces(model, o);
   Positions<Scalar> f(model.num_nodes(), 3);
   forces.evaluate(model, model.positions(), model.velocities(), f);  // warm-up
@@ -25,8 +26,10 @@ void BM_ForceEvaluation(benchmark::State& state) {
 void sizes(benchmark::internal::Benchmark* b) {
   for (double links : {1e3, 1e4, 1e5, 1e6})
     for (int threads : {1, 2})
-      for (int bilinear : {0, 1}) b->Args({cells_for_links(links), threads, bilinear});
-  b->ArgNames({"cells", "threads", "bilinear"})->UseRealTime()->MinWarmUpTime(0.05);
+      for (int bilinear : {0, 1})
+        for (int simd : {0, 1}) b->Args({cells_for_links(links), threads, bilinear, simd});
+  // simd: the SIMD link kernel (ForceModel::Options::simd; double only: float runs the scalar loop).
+  b->ArgNames({"cells", "threads", "bilinear", "simd"})->UseRealTime()->MinWarmUpTime(0.05);
 }
 
 BENCHMARK_TEMPLATE(BM_ForceEvaluation, double)->Apply(sizes);

@@ -16,10 +16,11 @@ Scalar step_for(const Simulation<Scalar>& sim) {
 
 template <typename Scalar>
 void run_simulation(benchmark::State& state, SphereModel<Scalar> model, const std::string& name,
-                    int threads, bool check_energy) {
+                    int threads, bool check_energy, bool simd = true) {
   typename Simulation<Scalar>::Options o;
   o.integrator = name;
   o.forces.threads = threads;
+  o.forces.simd = simd;
   o.divergence.check_energy = check_energy;
   Simulation<Scalar> sim(std::move(model), o);
   const Scalar dt = step_for(sim);
@@ -46,7 +47,7 @@ void BM_Step(benchmark::State& state, const std::string& name) {
 template <typename Scalar>
 void BM_StepUterusSized(benchmark::State& state, const std::string& name) {
   run_simulation<Scalar>(state, uterus_sized_model<Scalar>(), name, int(state.range(0)),
-                         state.range(1) != 0);
+                         state.range(1) != 0, state.range(2) != 0);
   state.counters["spheres"] = double(uterus_sized_model<Scalar>().num_nodes());
 }
 
@@ -103,7 +104,9 @@ void sizes(benchmark::internal::Benchmark* b) {
 }
 
 void uterus(benchmark::internal::Benchmark* b) {
-  b->Args({1, 1})->Args({2, 1})->Args({1, 0})->ArgNames({"threads", "energy_check"})->UseRealTime();
+  // simd: the SIMD link kernel (ForceModel::Options::simd; double only), 0 = the scalar loop.
+  b->Args({1, 1, 1})->Args({2, 1, 1})->Args({1, 0, 1})->Args({1, 1, 0})->Args({2, 1, 0});
+  b->ArgNames({"threads", "energy_check", "simd"})->UseRealTime();
 }
 
 const bool registered = [] {
