@@ -32,10 +32,12 @@ Instrument<double> probe(const SphereModel<double>& m, const Part& p) {
   return support::CapsuleProbe{support::outermost_free_sphere(m, p)}.instrument(0.001);
 }
 
-void BM_UterusContact(benchmark::State& state, const std::string& part, bool parts) {
+void BM_UterusContact(benchmark::State& state, const std::string& part, bool parts,
+                      bool faces = false) {
   const auto& model = uterus();
   ContactOptions<double> o;
   o.part_contact = parts;
+  o.face_contact = faces;
   ContactSolver<double> solver(model.spheres, o);
   solver.add_instrument(probe(model.spheres, model.part(part)));
   Positions<double> f = Positions<double>::Zero(model.spheres.num_nodes(), 3);
@@ -399,6 +401,10 @@ const bool registered = [] {
         ->Unit(benchmark::kMicrosecond);
     benchmark::RegisterBenchmark((std::string("BM_UterusContact/") + p + "/parts:0").c_str(),
                                  [p](benchmark::State& s) { BM_UterusContact(s, p, false); })
+        ->Unit(benchmark::kMicrosecond);
+    // The probe against the tetrahedral parts' faces (ContactOptions::face_contact).
+    benchmark::RegisterBenchmark((std::string("BM_UterusContact/") + p + "/parts:0/faces:1").c_str(),
+                                 [p](benchmark::State& s) { BM_UterusContact(s, p, false, true); })
         ->Unit(benchmark::kMicrosecond);
   }
   return true;

@@ -561,7 +561,11 @@ int run(const Args& args) {
                                    args.law == "continuum" ? ForceLaw::continuum : ForceLaw::links);
     sim.refresh();
   }
-  collision::ContactSolver<double> contacts(sim.model(), sim.forces());
+  // The probe (2.5 mm radius) is smaller than the tetrahedral parts' vertex spacing: it meets
+  // their faces, as in the demo (docs/physics.md section 8).
+  collision::ContactOptions<double> contact_options;
+  contact_options.face_contact = true;
+  collision::ContactSolver<double> contacts(sim.model(), sim.forces(), contact_options);
   collision::Instrument<double> tool;
   tool.name = "probe";
   tool.shape = collision::CapsuleShape<double>{kShaftRadius, kHalfLength};

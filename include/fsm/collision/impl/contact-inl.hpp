@@ -177,6 +177,13 @@ void ContactSolver<Scalar>::sample_face(const SphereModel<Scalar>& model,
                         p2 = x.row(v[2]).transpose();
   const Vector3<Scalar> fmin = p0.cwiseMin(p1).cwiseMin(p2), fmax = p0.cwiseMax(p1).cwiseMax(p2);
   if ((fmax.array() < lo.array()).any() || (fmin.array() > hi.array()).any()) return;
+  {  // the face's bounding sphere must meet the instrument before its samples are tested
+    const Vector3<Scalar> c = (p0 + p1 + p2) / Scalar(3);
+    const Scalar r = std::sqrt(std::max({(p0 - c).squaredNorm(), (p1 - c).squaredNorm(),
+                                         (p2 - c).squaredNorm()}));
+    ++m_narrow_tests;
+    if (!contact(ins.shape, ins.pose, c, r)) return;
+  }
   const int m = m_face_div[std::size_t(f)];
   const Scalar share = Scalar(0.5) * (p1 - p0).cross(p2 - p0).norm() / Scalar(m * m);
   const Scalar kappa[3] = {m_kappa[std::size_t(v[0])], m_kappa[std::size_t(v[1])],
