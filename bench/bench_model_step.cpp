@@ -8,8 +8,9 @@
 //
 //   bench_model_step MODEL.fsm [--law links|continuum] [--threads N] [--tolerance TOL]
 //                    [--steps N] [--no-probe] [--continuum-part NAME]
-//                    [--element-tangent-quality Q] [--gravity-y] [--json]
+//                    [--element-tangent-quality Q] [--gravity-y] [--no-simd] [--json]
 // --gravity-y: gravity along -y (the Visible Human data set's down) instead of -z.
+// --no-simd: the scalar link loops (ForceModel::Options::simd = false).
 //
 // --law continuum puts every tetrahedral part on the continuum law, or only NAME with
 // --continuum-part.
@@ -34,7 +35,7 @@ int main(int argc, char** argv) {
   int threads = 1, steps = 2000;
   double tolerance = 1e-3;
   double element_tangent_quality = ForceModel<double>::Options{}.element_tangent_quality;
-  bool probe = true, json = false, gravity_y = false;
+  bool probe = true, json = false, gravity_y = false, simd = true;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&]() -> std::string {
@@ -60,6 +61,8 @@ int main(int argc, char** argv) {
       gravity_y = true;
     else if (a == "--no-probe")
       probe = false;
+    else if (a == "--no-simd")
+      simd = false;
     else if (a == "--json")
       json = true;
     else if (!a.empty() && a[0] != '-' && path.empty())
@@ -68,7 +71,7 @@ int main(int argc, char** argv) {
       std::fprintf(stderr,
                    "usage: %s MODEL.fsm [--law links|continuum] [--threads N] [--tolerance TOL] "
                    "[--steps N] [--no-probe] [--continuum-part NAME] "
-                   "[--element-tangent-quality Q] [--gravity-y] [--json]\n",
+                   "[--element-tangent-quality Q] [--gravity-y] [--no-simd] [--json]\n",
                    argv[0]);
       return 2;
     }
@@ -95,6 +98,7 @@ int main(int argc, char** argv) {
     Simulation<double>::Options so;
     so.forces.drag = 5;
     so.forces.threads = threads;
+    so.forces.simd = simd;
     so.forces.element_tangent_quality = element_tangent_quality;
     if (gravity_y) so.forces.gravity = Vector3<double>(0, -9.81, 0);
     so.divergence.max_substep_halvings = 2;  // as the demo and servo_latency

@@ -135,9 +135,9 @@ class ForceModel {
     /// implicit solve instead of springs along their edges, which cannot resist a sliver's apex
     /// moving across its base (docs/physics.md section 11). 0 = none, above 1 = every element
     /// (each costs about five times its edge springs per solver iteration).
-    /// Evaluate the link forces with the SIMD kernel when the CPU has one (AVX2 with FMA; double
-    /// only: detail/simd_links.hpp); false: the scalar loop, the reference. Both give the same
-    /// forces to rounding.
+    /// Run the link loops (the forces, and the implicit solve's link blocks and products) on the
+    /// SIMD kernels when the CPU has them (AVX2 with FMA; double only: detail/simd_links.hpp);
+    /// false: the scalar loops, the reference. Both give the same results to rounding.
     bool simd{true};
     Scalar element_tangent_quality{
         Scalar(detail::ContinuumTerm<Scalar>::default_element_tangent_quality)};
@@ -344,6 +344,8 @@ class ForceModel {
 
  private:
   void resize_scratch();
+  // Copies x (and v, unless null) into m_x4 (m_v4), four per node, for the SIMD kernels.
+  void pad_states(const Scalar* x, const Scalar* v, Index n) noexcept;
 
   void update_mobility(const SphereModel<Scalar>& model) noexcept;
   void update_ranges(const SphereModel<Scalar>& model) noexcept;

@@ -27,6 +27,25 @@ using LinkForceKernel = void (*)(const LinkArrays& links, const double* x4, cons
 /// (else full_relative_velocity).
 LinkForceKernel link_force_kernel(bool bilinear, bool along_link) noexcept;
 
+/// The links' part of ForceModel::prepare_implicit for links [begin, end), all carrying force:
+/// per link the block (n, a, b) of B = h D + h^2 K = a n n^T + b I into `blocks` (5 per link), and
+/// h F + h^2 K u (u = v_j - v_i) into `rhs` (3 per node: += on i, -= on j). `definite`: the
+/// transverse term of a compressed link dropped (JacobianForm::definite), else symmetric.
+using LinkPrepareKernel = void (*)(const LinkArrays& links, const double* x4, const double* v4,
+                                   double h, bool definite, double* blocks, double* rhs,
+                                   std::int32_t begin, std::int32_t end);
+
+/// y += the links' part of A p for links [begin, end): -B_l (p_j - p_i) on i, +B_l (p_j - p_i) on
+/// j, with the blocks of the prepare kernel; `p4` holds 4 doubles per node, `y` 3.
+using LinkApplyKernel = void (*)(const std::int32_t* ij, const double* blocks, const double* p4,
+                                 double* y, std::int32_t begin, std::int32_t end);
+
+/// The prepare kernel for this CPU, or nullptr.
+LinkPrepareKernel link_prepare_kernel(bool bilinear, bool along_link) noexcept;
+
+/// The apply kernel for this CPU, or nullptr.
+LinkApplyKernel link_apply_kernel() noexcept;
+
 /// The instruction set of the kernels link_force_kernel() returns ("avx2+fma"), or "none".
 const char* instruction_set() noexcept;
 

@@ -524,6 +524,20 @@ void ForceModel<Scalar>::set_options(const Options& options) {
 }
 
 template <typename Scalar>
+void ForceModel<Scalar>::pad_states(const Scalar* x, const Scalar* v, Index n) noexcept {
+  if constexpr (std::is_same_v<Scalar, double>) {
+    for (Index i = 0; i < n; ++i) {
+      const std::ptrdiff_t k = 3 * std::ptrdiff_t(i), q = 4 * std::ptrdiff_t(i);
+      for (int c = 0; c < 3; ++c) m_x4[std::size_t(q + c)] = x[k + c];
+      if (v)
+        for (int c = 0; c < 3; ++c) m_v4[std::size_t(q + c)] = v[k + c];
+    }
+  } else {
+    (void)x, (void)v, (void)n;
+  }
+}
+
+template <typename Scalar>
 void ForceModel<Scalar>::resize_scratch() {
   const int threads = std::max(1, std::min(m_options.threads, detail::max_threads()));
   m_pool.reset(threads);
@@ -563,13 +577,7 @@ void ForceModel<Scalar>::evaluate(const SphereModel<Scalar>& model, const ConstP
       simd_kernel = detail::simd::link_force_kernel(bilinear, dm == DampingModel::along_link);
     if (simd_kernel) {  // one load per node: x, y, z padded to four
       simd_links = {L.ij, L.rest, L.ks, L.kd, L.kl, L.es};
-      for (Index i = 0; i < model.num_nodes(); ++i) {
-        const std::ptrdiff_t k = 3 * std::ptrdiff_t(i), q = 4 * std::ptrdiff_t(i);
-        for (int c = 0; c < 3; ++c) {
-          m_x4[std::size_t(q + c)] = xp[k + c];
-          m_v4[std::size_t(q + c)] = vp[k + c];
-        }
-      }
+      pad_states(xp, vp, model.num_nodes());
     }
   }
   auto kernel_range = [&](Index begin, Index end, Scalar* out) {
@@ -698,7 +706,39 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
       const std::ptrdiff_t k = 3 * std::ptrdiff_t(i);
       for (int c = 0; c < 3; ++c) out[c] = h * (mass[i] * (g[c] - drag * v[k + c]) + ext[k + c]);
     };
+    detail::simd::LinkPrepareKernel simd_prepare = nullptr;
+    detail::simd::LinkArrays simd_links{};
+    if constexpr (std::is_same_v<Scalar, double>) {
+      if (m_options.simd && form != JacobianForm::exact &&
+          m_x4.size() == 4 * std::size_t(model.num_nodes()))
+        simd_prepare = detail::simd::link_prepare_kernel(model.has_bilinear_links(),
+                                                         dm == DampingModel::along_link);
+      if (simd_prepare) {
+        simd_links = {L.ij, L.rest, L.ks, L.kd, L.kl, L.es};
+        pad_states(x, v, model.num_nodes());
+      }
+    }
     auto kernel = [&](Index begin, Index end, Scalar* out) {
+      if constexpr (std::is_same_v<Scalar, double>) {
+        if (simd_prepare) {  // the force links' ranges on the kernel; the others get zero blocks
+          Index l = begin;
+          auto zero = [&](Index from, Index to) {
+            if (from < to)
+              std::fill(blocks + std::ptrdiff_t(implicit_block_size) * from,
+                        blocks + std::ptrdiff_t(implicit_block_size) * to, Scalar(0));
+          };
+          for (const auto& [a, b] : m_force_ranges) {
+            const Index lo = std::max(a, begin), hi = std::min(b, end);
+            if (lo >= hi) continue;
+            zero(l, lo);
+            simd_prepare(simd_links, m_x4.data(), m_v4.data(), h,
+                         form == JacobianForm::definite, blocks, out, lo, hi);
+            l = hi;
+          }
+          zero(l, end);
+          return;
+        }
+      }
       for (Index l = begin; l < end; ++l) {
         if (!m_force_link[std::size_t(l)]) {  // inside a continuum region: no force, no block
           std::fill_n(blocks + std::ptrdiff_t(implicit_block_size) * l, implicit_block_size,
@@ -876,7 +916,19 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
     out[1] = md * mass[i] * pp[k + 1];
     out[2] = md * mass[i] * pp[k + 2];
   };
+  detail::simd::LinkApplyKernel simd_apply = nullptr;
+  if constexpr (std::is_same_v<Scalar, double>) {
+    if (m_options.simd && m_x4.size() == 4 * std::size_t(model.num_nodes()))
+      simd_apply = detail::simd::link_apply_kernel();
+    if (simd_apply) pad_states(pp, nullptr, model.num_nodes());  // p into m_x4
+  }
   auto kernel_range = [&](Index begin, Index end, Scalar* out) {
+    if constexpr (std::is_same_v<Scalar, double>) {
+      if (simd_apply) {
+        simd_apply(ij, blocks, m_x4.data(), out, begin, end);
+        return;
+      }
+    }
     for (Index l = begin; l < end; ++l) {
       const Scalar* B = blocks + std::ptrdiff_t(implicit_block_size) * l;
       const std::ptrdiff_t i = 3 * std::ptrdiff_t(ij[2 * l]);

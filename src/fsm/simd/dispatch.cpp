@@ -7,6 +7,8 @@ namespace fsm::detail::simd {
 
 #if defined(FSM_SIMD_AVX2)
 LinkForceKernel avx2_link_force_kernel(bool bilinear, bool along_link) noexcept;
+LinkPrepareKernel avx2_link_prepare_kernel(bool bilinear, bool along_link) noexcept;
+LinkApplyKernel avx2_link_apply_kernel() noexcept;
 
 namespace {
 bool has_avx2_fma() noexcept {
@@ -19,9 +21,19 @@ LinkForceKernel link_force_kernel(bool bilinear, bool along_link) noexcept {
   return has_avx2_fma() ? avx2_link_force_kernel(bilinear, along_link) : nullptr;
 }
 
+LinkPrepareKernel link_prepare_kernel(bool bilinear, bool along_link) noexcept {
+  return has_avx2_fma() ? avx2_link_prepare_kernel(bilinear, along_link) : nullptr;
+}
+
+LinkApplyKernel link_apply_kernel() noexcept {
+  return has_avx2_fma() ? avx2_link_apply_kernel() : nullptr;
+}
+
 const char* instruction_set() noexcept { return has_avx2_fma() ? "avx2+fma" : "none"; }
 #else
 LinkForceKernel link_force_kernel(bool, bool) noexcept { return nullptr; }
+LinkPrepareKernel link_prepare_kernel(bool, bool) noexcept { return nullptr; }
+LinkApplyKernel link_apply_kernel() noexcept { return nullptr; }
 const char* instruction_set() noexcept { return "none"; }
 #endif
 

@@ -27,6 +27,25 @@ inline void load_transposed(const double* r0, const double* r1, const double* r2
   Z = xsimd::select(High{}, t2, xsimd::swizzle(t0, Swap{}));
 }
 
+// Four rows of four doubles into the batches of their columns (the full 4 x 4 transpose).
+template <class Arch>
+inline void load_transposed4(const double* r0, const double* r1, const double* r2,
+                             const double* r3, xsimd::batch<double, Arch>& X,
+                             xsimd::batch<double, Arch>& Y, xsimd::batch<double, Arch>& Z,
+                             xsimd::batch<double, Arch>& W) noexcept {
+  using B = xsimd::batch<double, Arch>;
+  using Swap = xsimd::batch_constant<xsimd::batch<std::uint64_t, Arch>, 2, 3, 0, 1>;
+  using High = xsimd::batch_bool_constant<B, false, false, true, true>;
+  const B a = B::load_unaligned(r0), b = B::load_unaligned(r1), c = B::load_unaligned(r2),
+          d = B::load_unaligned(r3);
+  const B t0 = xsimd::zip_lo(a, b), t1 = xsimd::zip_hi(a, b);
+  const B t2 = xsimd::zip_lo(c, d), t3 = xsimd::zip_hi(c, d);
+  X = xsimd::select(High{}, xsimd::swizzle(t2, Swap{}), t0);
+  Y = xsimd::select(High{}, xsimd::swizzle(t3, Swap{}), t1);
+  Z = xsimd::select(High{}, t2, xsimd::swizzle(t0, Swap{}));
+  W = xsimd::select(High{}, t3, xsimd::swizzle(t1, Swap{}));
+}
+
 // One link, scalar: the batch kernel's remainder (the same formula as accumulate_link_forces).
 // Arch only names the instantiation apart from other instruction sets' (it is compiled with this
 // file's flags).
@@ -142,6 +161,201 @@ void link_forces(const LinkArrays& L, const double* x4, const double* v4, double
     oi[1] += ay;
     oi[2] += az;
   }
+}
+
+// Four rows of (x, y, z, w) back from the batches X, Y, Z (w = 0): the inverse of
+// load_transposed.
+template <class Arch>
+inline void to_rows(const xsimd::batch<double, Arch>& X, const xsimd::batch<double, Arch>& Y,
+                    const xsimd::batch<double, Arch>& Z, xsimd::batch<double, Arch> rows[4]) noexcept {
+  using B = xsimd::batch<double, Arch>;
+  using Swap = xsimd::batch_constant<xsimd::batch<std::uint64_t, Arch>, 2, 3, 0, 1>;
+  using High = xsimd::batch_bool_constant<B, false, false, true, true>;
+  const B zero(0.0);
+  const B t0 = xsimd::zip_lo(X, Y), t1 = xsimd::zip_hi(X, Y);  // (x0 y0 x2 y2), (x1 y1 x3 y3)
+  const B t2 = xsimd::zip_lo(Z, zero), t3 = xsimd::zip_hi(Z, zero);
+  rows[0] = xsimd::select(High{}, xsimd::swizzle(t2, Swap{}), t0);
+  rows[1] = xsimd::select(High{}, xsimd::swizzle(t3, Swap{}), t1);
+  rows[2] = xsimd::select(High{}, t2, xsimd::swizzle(t0, Swap{}));
+  rows[3] = xsimd::select(High{}, t3, xsimd::swizzle(t1, Swap{}));
+}
+
+// Scatter of per-link vectors r (three per link, from batches) with the first node's run summed:
+// out_i += r, out_j -= r (`sign` -1 flips both, for the apply kernel's y_i -= g, y_j += g).
+struct RunScatter {
+  double* out;
+  std::int32_t cur{-1};
+  double ax{0}, ay{0}, az{0};
+  explicit RunScatter(double* o) noexcept : out(o) {}
+  inline void put(std::int32_t i, std::int32_t j, double rx, double ry, double rz) noexcept {
+    double* oj = out + 3 * std::int64_t(j);
+    oj[0] -= rx;
+    oj[1] -= ry;
+    oj[2] -= rz;
+    if (i != cur) {
+      flush();
+      cur = i;
+    }
+    ax += rx;
+    ay += ry;
+    az += rz;
+  }
+  inline void flush() noexcept {
+    if (cur >= 0) {
+      double* oi = out + 3 * std::int64_t(cur);
+      oi[0] += ax;
+      oi[1] += ay;
+      oi[2] += az;
+    }
+    ax = ay = az = 0;
+  }
+};
+
+// The prepare kernel (see simd_links.hpp). The same formulas as link_state, symmetric_stiffness
+// and ForceModel::prepare_implicit's link loop, four links per batch.
+template <class Arch, bool Bilinear, bool AlongLink>
+void link_prepare(const LinkArrays& L, const double* x4, const double* v4, double h,
+                  bool definite, double* blocks, double* rhs, std::int32_t begin,
+                  std::int32_t end) noexcept {
+  using B = xsimd::batch<double, Arch>;
+  const double h2 = h * h;
+  RunScatter scatter(rhs);
+  alignas(64) double out[9][4];  // rx, ry, rz, n0, n1, n2, a, b, (unused)
+  auto batch = [&](std::int32_t l, const B& dx, const B& dy, const B& dz, const B& ux,
+                   const B& uy, const B& uz, const B& rest, const B& ks, const B& kd,
+                   const B& kl, const B& esw) {
+    const B l2 = dx * dx + dy * dy + dz * dz;
+    const auto pos = l2 > B(0.0);
+    const B len = xsimd::sqrt(l2);
+    const B inv = xsimd::select(pos, B(1.0) / len, B(0.0));
+    const B nx = dx * inv, ny = dy * inv, nz = dz * inv;
+    const B e = len - rest;
+    B fe = ks * e, tangent = ks;
+    if (Bilinear) {
+      const B es = esw * rest;
+      const B a = xsimd::abs(e);
+      const auto small = a <= es;
+      fe = xsimd::select(small, fe, xsimd::copysign(ks * es + kl * (a - es), e));
+      tangent = xsimd::select(small, ks, kl);
+    }
+    const B un = ux * nx + uy * ny + uz * nz;
+    const B total = AlongLink ? fe + kd * un : fe;
+    const B used = definite ? xsimd::max(total, B(0.0)) : total;
+    const B beta = xsimd::select(pos, used * inv, B(0.0));
+    const B alpha = xsimd::select(pos, tangent - beta, B(0.0));
+    // r = h F + h^2 K u, F = total n (+ kd u), K u = alpha (n . u) n + beta u.
+    const B an = alpha * un;
+    B rx = B(h) * (total * nx) + B(h2) * (an * nx + beta * ux);
+    B ry = B(h) * (total * ny) + B(h2) * (an * ny + beta * uy);
+    B rz = B(h) * (total * nz) + B(h2) * (an * nz + beta * uz);
+    if (!AlongLink) {
+      rx += B(h) * (kd * ux);
+      ry += B(h) * (kd * uy);
+      rz += B(h) * (kd * uz);
+    }
+    rx.store_aligned(out[0]);
+    ry.store_aligned(out[1]);
+    rz.store_aligned(out[2]);
+    nx.store_aligned(out[3]);
+    ny.store_aligned(out[4]);
+    nz.store_aligned(out[5]);
+    (B(h2) * alpha + (AlongLink ? B(h) * kd : B(0.0))).store_aligned(out[6]);
+    (B(h2) * beta + (AlongLink ? B(0.0) : B(h) * kd)).store_aligned(out[7]);
+    (void)l;
+  };
+  auto emit = [&](std::int32_t l, int lanes) {
+    for (int k = 0; k < lanes; ++k) {
+      double* blk = blocks + 5 * std::int64_t(l + k);
+      blk[0] = out[3][k];
+      blk[1] = out[4][k];
+      blk[2] = out[5][k];
+      blk[3] = out[6][k];
+      blk[4] = out[7][k];
+      scatter.put(L.ij[2 * (l + k)], L.ij[2 * (l + k) + 1], out[0][k], out[1][k], out[2][k]);
+    }
+  };
+  std::int32_t l = begin;
+  for (; l + 4 <= end; l += 4) {
+    const std::int32_t* P = L.ij + 2 * std::int64_t(l);
+    const std::int64_t i0 = 4 * std::int64_t(P[0]), i1 = 4 * std::int64_t(P[2]),
+                       i2 = 4 * std::int64_t(P[4]), i3 = 4 * std::int64_t(P[6]);
+    const std::int64_t j0 = 4 * std::int64_t(P[1]), j1 = 4 * std::int64_t(P[3]),
+                       j2 = 4 * std::int64_t(P[5]), j3 = 4 * std::int64_t(P[7]);
+    B xi, yi, zi, xj, yj, zj, vxi, vyi, vzi, vxj, vyj, vzj;
+    load_transposed<Arch>(x4 + i0, x4 + i1, x4 + i2, x4 + i3, xi, yi, zi);
+    load_transposed<Arch>(x4 + j0, x4 + j1, x4 + j2, x4 + j3, xj, yj, zj);
+    load_transposed<Arch>(v4 + i0, v4 + i1, v4 + i2, v4 + i3, vxi, vyi, vzi);
+    load_transposed<Arch>(v4 + j0, v4 + j1, v4 + j2, v4 + j3, vxj, vyj, vzj);
+    batch(l, xj - xi, yj - yi, zj - zi, vxj - vxi, vyj - vyi, vzj - vzi,
+          B::load_unaligned(L.rest + l), B::load_unaligned(L.ks + l),
+          B::load_unaligned(L.kd + l), B::load_unaligned(L.kl + l), B::load_unaligned(L.es + l));
+    emit(l, 4);
+  }
+  if (l < end) {  // the remainder: fill the missing lanes with copies of the last link
+    alignas(64) double d[6][4], c[5][4];
+    for (int k = 0; k < 4; ++k) {
+      const std::int32_t q = l + k < end ? l + k : end - 1;
+      const double* xi = x4 + 4 * std::int64_t(L.ij[2 * q]);
+      const double* xj = x4 + 4 * std::int64_t(L.ij[2 * q + 1]);
+      const double* vi = v4 + 4 * std::int64_t(L.ij[2 * q]);
+      const double* vj = v4 + 4 * std::int64_t(L.ij[2 * q + 1]);
+      for (int a = 0; a < 3; ++a) {
+        d[a][k] = xj[a] - xi[a];
+        d[3 + a][k] = vj[a] - vi[a];
+      }
+      c[0][k] = L.rest[q];
+      c[1][k] = L.ks[q];
+      c[2][k] = L.kd[q];
+      c[3][k] = L.kl[q];
+      c[4][k] = L.es[q];
+    }
+    batch(l, B::load_aligned(d[0]), B::load_aligned(d[1]), B::load_aligned(d[2]),
+          B::load_aligned(d[3]), B::load_aligned(d[4]), B::load_aligned(d[5]),
+          B::load_aligned(c[0]), B::load_aligned(c[1]), B::load_aligned(c[2]),
+          B::load_aligned(c[3]), B::load_aligned(c[4]));
+    emit(l, int(end - l));
+  }
+  scatter.flush();
+}
+
+// The apply kernel (see simd_links.hpp): g = a (n . dp) n + b dp with dp = p_j - p_i; y_i -= g,
+// y_j += g.
+template <class Arch>
+void link_apply(const std::int32_t* ij, const double* blocks, const double* p4, double* y,
+                std::int32_t begin, std::int32_t end) noexcept {
+  using B = xsimd::batch<double, Arch>;
+  RunScatter scatter(y);  // puts -g: y_i += (-g), y_j -= (-g)
+  alignas(64) double gx[4], gy[4], gz[4];
+  std::int32_t l = begin;
+  for (; l + 4 <= end; l += 4) {
+    const std::int32_t* P = ij + 2 * std::int64_t(l);
+    B xi, yi, zi, xj, yj, zj, n0, n1, n2, a;
+    load_transposed<Arch>(p4 + 4 * std::int64_t(P[0]), p4 + 4 * std::int64_t(P[2]),
+                          p4 + 4 * std::int64_t(P[4]), p4 + 4 * std::int64_t(P[6]), xi, yi, zi);
+    load_transposed<Arch>(p4 + 4 * std::int64_t(P[1]), p4 + 4 * std::int64_t(P[3]),
+                          p4 + 4 * std::int64_t(P[5]), p4 + 4 * std::int64_t(P[7]), xj, yj, zj);
+    const double* blk = blocks + 5 * std::int64_t(l);
+    // (n0, n1, n2, a) of each link as rows; b on its own.
+    load_transposed4<Arch>(blk, blk + 5, blk + 10, blk + 15, n0, n1, n2, a);
+    alignas(32) const double bs[4] = {blk[4], blk[9], blk[14], blk[19]};
+    const B b = B::load_aligned(bs);
+    const B dx = xj - xi, dy = yj - yi, dz = zj - zi;
+    const B s = a * (n0 * dx + n1 * dy + n2 * dz);
+    (B(0.0) - (s * n0 + b * dx)).store_aligned(gx);
+    (B(0.0) - (s * n1 + b * dy)).store_aligned(gy);
+    (B(0.0) - (s * n2 + b * dz)).store_aligned(gz);
+    for (int k = 0; k < 4; ++k) scatter.put(P[2 * k], P[2 * k + 1], gx[k], gy[k], gz[k]);
+  }
+  for (; l < end; ++l) {
+    const double* Bl = blocks + 5 * std::int64_t(l);
+    const double* pi = p4 + 4 * std::int64_t(ij[2 * l]);
+    const double* pj = p4 + 4 * std::int64_t(ij[2 * l + 1]);
+    const double dx = pj[0] - pi[0], dy = pj[1] - pi[1], dz = pj[2] - pi[2];
+    const double s = Bl[3] * (Bl[0] * dx + Bl[1] * dy + Bl[2] * dz);
+    scatter.put(ij[2 * l], ij[2 * l + 1], -(s * Bl[0] + Bl[4] * dx), -(s * Bl[1] + Bl[4] * dy),
+                -(s * Bl[2] + Bl[4] * dz));
+  }
+  scatter.flush();
 }
 
 }  // namespace fsm::detail::simd

@@ -12,4 +12,12 @@ LinkForceKernel avx2_link_force_kernel(bool bilinear, bool along_link) noexcept 
   return along_link ? &link_forces<Avx2, false, true> : &link_forces<Avx2, false, false>;
 }
 
+LinkPrepareKernel avx2_link_prepare_kernel(bool bilinear, bool along_link) noexcept {
+  if (bilinear)
+    return along_link ? &link_prepare<Avx2, true, true> : &link_prepare<Avx2, true, false>;
+  return along_link ? &link_prepare<Avx2, false, true> : &link_prepare<Avx2, false, false>;
+}
+
+LinkApplyKernel avx2_link_apply_kernel() noexcept { return &link_apply<Avx2>; }
+
 }  // namespace fsm::detail::simd
