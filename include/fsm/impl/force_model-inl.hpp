@@ -874,12 +874,25 @@ void ForceModel<Scalar>::implicit_diagonal_blocks(const SphereModel<Scalar>& mod
     o[4] += a * nv[0] * nv[2];
     o[5] += a * nv[1] * nv[2];
   };
+  // The first node of a run of links that share it (the builder sorts links so) sums in registers.
   const Index* ij = model.links().data();
   for (const auto& [begin, end] : m_force_ranges)
-    for (Index l = begin; l < end; ++l) {
-      const Scalar* B = blocks + std::ptrdiff_t(implicit_block_size) * l;
-      add(ij[2 * l], B, B[3], B[4]);
-      add(ij[2 * l + 1], B, B[3], B[4]);
+    for (Index l = begin; l < end;) {
+      const Index i = ij[2 * l];
+      Scalar acc[6] = {0, 0, 0, 0, 0, 0};
+      for (; l < end && ij[2 * l] == i; ++l) {
+        const Scalar* B = blocks + std::ptrdiff_t(implicit_block_size) * l;
+        const Scalar a = B[3], b = B[4];
+        const Scalar d[6] = {a * B[0] * B[0] + b, a * B[1] * B[1] + b, a * B[2] * B[2] + b,
+                             a * B[0] * B[1],     a * B[0] * B[2],     a * B[1] * B[2]};
+        Scalar* o = out + 6 * std::ptrdiff_t(ij[2 * l + 1]);
+        for (int c = 0; c < 6; ++c) {
+          o[c] += d[c];
+          acc[c] += d[c];
+        }
+      }
+      Scalar* o = out + 6 * std::ptrdiff_t(i);
+      for (int c = 0; c < 6; ++c) o[c] += acc[c];
     }
   m_continuum.add_diagonal_blocks(out);
   for (Index k = 0; k < m_num_contacts; ++k) {
