@@ -411,7 +411,8 @@ void ContactSolver<Scalar>::detect(const SphereModel<Scalar>& model, Emit&& emit
   for (std::size_t k = 0; k < m_instruments.size(); ++k) {
     const Instrument<Scalar>& ins = m_instruments[k];
     if (!ins.enabled) continue;
-    const auto [box_lo, box_hi] = bounding_box(ins.shape, ins.pose);
+    const auto box = bounding_box(ins.shape, ins.pose);  // (not a structured binding: captured)
+    const Vector3<Scalar> box_lo = box.first, box_hi = box.second;
     const Scalar margin = std::max(m_max_radius, faces ? Scalar(2) * m_max_face_edge : Scalar(0));
     const Vector3<Scalar> lo = box_lo.array() - margin, hi = box_hi.array() + margin;
     if (faces && ++m_stamp == 0) {  // the stamps wrapped: start again
