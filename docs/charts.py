@@ -61,7 +61,7 @@ def force_chart():
     ax.set_ylabel("force evaluation, ns per link")
     ax.set_ylim(bottom=0)
     ax.set_title("Voigt link forces (bilinear tissue), " + data["context"].get("host_name", ""))
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=7, loc="lower right", ncol=2)
     fig.tight_layout()
     fig.savefig(os.path.join(IMG, "force_per_link.png"), dpi=120)
 
