@@ -29,12 +29,22 @@ LinkApplyKernel link_apply_kernel() noexcept {
   return has_avx2_fma() ? avx2_link_apply_kernel() : nullptr;
 }
 
-const char* instruction_set() noexcept { return has_avx2_fma() ? "avx2+fma" : "none"; }
+const char* instruction_set() noexcept {
+  return has_avx2_fma() ? "avx2+fma" : "none";
+}
 #else
-LinkForceKernel link_force_kernel(bool, bool) noexcept { return nullptr; }
-LinkPrepareKernel link_prepare_kernel(bool, bool) noexcept { return nullptr; }
-LinkApplyKernel link_apply_kernel() noexcept { return nullptr; }
-const char* instruction_set() noexcept { return "none"; }
+LinkForceKernel link_force_kernel(bool, bool) noexcept {
+  return nullptr;
+}
+LinkPrepareKernel link_prepare_kernel(bool, bool) noexcept {
+  return nullptr;
+}
+LinkApplyKernel link_apply_kernel() noexcept {
+  return nullptr;
+}
+const char* instruction_set() noexcept {
+  return "none";
+}
 #endif
 
 }  // namespace fsm::detail::simd

@@ -10,28 +10,11 @@
 
 namespace fsm::detail::simd {
 
-// Four nodes' (x, y, z, _) rows into the batches X, Y, Z (4 lanes: one per node).
-template <class Arch>
-inline void load_transposed(const double* r0, const double* r1, const double* r2,
-                            const double* r3, xsimd::batch<double, Arch>& X,
-                            xsimd::batch<double, Arch>& Y, xsimd::batch<double, Arch>& Z) noexcept {
-  using B = xsimd::batch<double, Arch>;
-  using Swap = xsimd::batch_constant<xsimd::batch<std::uint64_t, Arch>, 2, 3, 0, 1>;
-  using High = xsimd::batch_bool_constant<B, false, false, true, true>;
-  const B a = B::load_unaligned(r0), b = B::load_unaligned(r1), c = B::load_unaligned(r2),
-          d = B::load_unaligned(r3);
-  const B t0 = xsimd::zip_lo(a, b), t1 = xsimd::zip_hi(a, b);  // (a0 b0 a2 b2), (a1 b1 a3 b3)
-  const B t2 = xsimd::zip_lo(c, d), t3 = xsimd::zip_hi(c, d);
-  X = xsimd::select(High{}, xsimd::swizzle(t2, Swap{}), t0);
-  Y = xsimd::select(High{}, xsimd::swizzle(t3, Swap{}), t1);
-  Z = xsimd::select(High{}, t2, xsimd::swizzle(t0, Swap{}));
-}
-
 // Four rows of four doubles into the batches of their columns (the full 4 x 4 transpose).
 template <class Arch>
-inline void load_transposed4(const double* r0, const double* r1, const double* r2,
-                             const double* r3, xsimd::batch<double, Arch>& X,
-                             xsimd::batch<double, Arch>& Y, xsimd::batch<double, Arch>& Z,
+inline void load_transposed4(const double* r0, const double* r1, const double* r2, const double* r3,
+                             xsimd::batch<double, Arch>& X, xsimd::batch<double, Arch>& Y,
+                             xsimd::batch<double, Arch>& Z,
                              xsimd::batch<double, Arch>& W) noexcept {
   using B = xsimd::batch<double, Arch>;
   using Swap = xsimd::batch_constant<xsimd::batch<std::uint64_t, Arch>, 2, 3, 0, 1>;
@@ -44,6 +27,15 @@ inline void load_transposed4(const double* r0, const double* r1, const double* r
   Y = xsimd::select(High{}, xsimd::swizzle(t3, Swap{}), t1);
   Z = xsimd::select(High{}, t2, xsimd::swizzle(t0, Swap{}));
   W = xsimd::select(High{}, t3, xsimd::swizzle(t1, Swap{}));
+}
+
+// Four nodes' (x, y, z, _) rows into the batches X, Y, Z (4 lanes: one per node).
+template <class Arch>
+inline void load_transposed(const double* r0, const double* r1, const double* r2, const double* r3,
+                            xsimd::batch<double, Arch>& X, xsimd::batch<double, Arch>& Y,
+                            xsimd::batch<double, Arch>& Z) noexcept {
+  xsimd::batch<double, Arch> unused;
+  load_transposed4<Arch>(r0, r1, r2, r3, X, Y, Z, unused);
 }
 
 // One link, scalar: the batch kernel's remainder (the same formula as accumulate_link_forces).
@@ -79,6 +71,38 @@ inline void link_force(const LinkArrays& L, std::int32_t l, const double* x4, co
   }
 }
 
+// Scatter of per-link vectors r: out_i += r, out_j -= r, the first node's run of links summed in
+// registers and written once (Arch only names the instantiation apart).
+template <class Arch>
+struct RunScatter {
+  double* out;
+  std::int32_t cur{-1};
+  double ax{0}, ay{0}, az{0};
+  explicit RunScatter(double* o) noexcept : out(o) {}
+  inline void put(std::int32_t i, std::int32_t j, double rx, double ry, double rz) noexcept {
+    double* oj = out + 3 * std::int64_t(j);
+    oj[0] -= rx;
+    oj[1] -= ry;
+    oj[2] -= rz;
+    if (i != cur) {
+      flush();
+      cur = i;
+    }
+    ax += rx;
+    ay += ry;
+    az += rz;
+  }
+  inline void flush() noexcept {
+    if (cur >= 0) {
+      double* oi = out + 3 * std::int64_t(cur);
+      oi[0] += ax;
+      oi[1] += ay;
+      oi[2] += az;
+    }
+    ax = ay = az = 0;
+  }
+};
+
 // Four links per batch: each link's two nodes are loaded as rows and transposed (no gathers: on
 // this machine's AMD cores AVX2 gathers cost more than the arithmetic they feed); the forces go
 // back link by link, the first node's summed over a run of links that share it (the builder sorts
@@ -88,27 +112,7 @@ void link_forces(const LinkArrays& L, const double* x4, const double* v4, double
                  std::int32_t begin, std::int32_t end) noexcept {
   using B = xsimd::batch<double, Arch>;
   static_assert(B::size == 4, "the transpose is written for 4 lanes");
-  std::int32_t cur = -1;
-  double ax = 0, ay = 0, az = 0;
-  auto put = [&](std::int32_t i, std::int32_t j, double fx, double fy, double fz) {
-    double* oj = out + 3 * std::int64_t(j);
-    oj[0] -= fx;
-    oj[1] -= fy;
-    oj[2] -= fz;
-    if (i != cur) {
-      if (cur >= 0) {
-        double* oi = out + 3 * std::int64_t(cur);
-        oi[0] += ax;
-        oi[1] += ay;
-        oi[2] += az;
-      }
-      cur = i;
-      ax = ay = az = 0;
-    }
-    ax += fx;
-    ay += fy;
-    az += fz;
-  };
+  RunScatter<Arch> scatter(out);
   alignas(64) double Fx[4], Fy[4], Fz[4];
   std::int32_t l = begin;
   for (; l + 4 <= end; l += 4) {
@@ -148,82 +152,27 @@ void link_forces(const LinkArrays& L, const double* x4, const double* v4, double
       (s * dy + kd * uy).store_aligned(Fy);
       (s * dz + kd * uz).store_aligned(Fz);
     }
-    for (int k = 0; k < 4; ++k) put(P[2 * k], P[2 * k + 1], Fx[k], Fy[k], Fz[k]);
+    for (int k = 0; k < 4; ++k) scatter.put(P[2 * k], P[2 * k + 1], Fx[k], Fy[k], Fz[k]);
   }
   for (; l < end; ++l) {
     double F[3];
     link_force<Arch, Bilinear, AlongLink>(L, l, x4, v4, F);
-    put(L.ij[2 * l], L.ij[2 * l + 1], F[0], F[1], F[2]);
+    scatter.put(L.ij[2 * l], L.ij[2 * l + 1], F[0], F[1], F[2]);
   }
-  if (cur >= 0) {
-    double* oi = out + 3 * std::int64_t(cur);
-    oi[0] += ax;
-    oi[1] += ay;
-    oi[2] += az;
-  }
+  scatter.flush();
 }
-
-// Four rows of (x, y, z, w) back from the batches X, Y, Z (w = 0): the inverse of
-// load_transposed.
-template <class Arch>
-inline void to_rows(const xsimd::batch<double, Arch>& X, const xsimd::batch<double, Arch>& Y,
-                    const xsimd::batch<double, Arch>& Z, xsimd::batch<double, Arch> rows[4]) noexcept {
-  using B = xsimd::batch<double, Arch>;
-  using Swap = xsimd::batch_constant<xsimd::batch<std::uint64_t, Arch>, 2, 3, 0, 1>;
-  using High = xsimd::batch_bool_constant<B, false, false, true, true>;
-  const B zero(0.0);
-  const B t0 = xsimd::zip_lo(X, Y), t1 = xsimd::zip_hi(X, Y);  // (x0 y0 x2 y2), (x1 y1 x3 y3)
-  const B t2 = xsimd::zip_lo(Z, zero), t3 = xsimd::zip_hi(Z, zero);
-  rows[0] = xsimd::select(High{}, xsimd::swizzle(t2, Swap{}), t0);
-  rows[1] = xsimd::select(High{}, xsimd::swizzle(t3, Swap{}), t1);
-  rows[2] = xsimd::select(High{}, t2, xsimd::swizzle(t0, Swap{}));
-  rows[3] = xsimd::select(High{}, t3, xsimd::swizzle(t1, Swap{}));
-}
-
-// Scatter of per-link vectors r (three per link, from batches) with the first node's run summed:
-// out_i += r, out_j -= r (`sign` -1 flips both, for the apply kernel's y_i -= g, y_j += g).
-struct RunScatter {
-  double* out;
-  std::int32_t cur{-1};
-  double ax{0}, ay{0}, az{0};
-  explicit RunScatter(double* o) noexcept : out(o) {}
-  inline void put(std::int32_t i, std::int32_t j, double rx, double ry, double rz) noexcept {
-    double* oj = out + 3 * std::int64_t(j);
-    oj[0] -= rx;
-    oj[1] -= ry;
-    oj[2] -= rz;
-    if (i != cur) {
-      flush();
-      cur = i;
-    }
-    ax += rx;
-    ay += ry;
-    az += rz;
-  }
-  inline void flush() noexcept {
-    if (cur >= 0) {
-      double* oi = out + 3 * std::int64_t(cur);
-      oi[0] += ax;
-      oi[1] += ay;
-      oi[2] += az;
-    }
-    ax = ay = az = 0;
-  }
-};
 
 // The prepare kernel (see simd_links.hpp). The same formulas as link_state, symmetric_stiffness
 // and ForceModel::prepare_implicit's link loop, four links per batch.
 template <class Arch, bool Bilinear, bool AlongLink>
-void link_prepare(const LinkArrays& L, const double* x4, const double* v4, double h,
-                  bool definite, double* blocks, double* rhs, std::int32_t begin,
-                  std::int32_t end) noexcept {
+void link_prepare(const LinkArrays& L, const double* x4, const double* v4, double h, bool definite,
+                  double* blocks, double* rhs, std::int32_t begin, std::int32_t end) noexcept {
   using B = xsimd::batch<double, Arch>;
   const double h2 = h * h;
-  RunScatter scatter(rhs);
+  RunScatter<Arch> scatter(rhs);
   alignas(64) double out[9][4];  // rx, ry, rz, n0, n1, n2, a, b, (unused)
-  auto batch = [&](std::int32_t l, const B& dx, const B& dy, const B& dz, const B& ux,
-                   const B& uy, const B& uz, const B& rest, const B& ks, const B& kd,
-                   const B& kl, const B& esw) {
+  auto batch = [&](const B& dx, const B& dy, const B& dz, const B& ux, const B& uy, const B& uz,
+                   const B& rest, const B& ks, const B& kd, const B& kl, const B& esw) {
     const B l2 = dx * dx + dy * dy + dz * dz;
     const auto pos = l2 > B(0.0);
     const B len = xsimd::sqrt(l2);
@@ -261,7 +210,6 @@ void link_prepare(const LinkArrays& L, const double* x4, const double* v4, doubl
     nz.store_aligned(out[5]);
     (B(h2) * alpha + (AlongLink ? B(h) * kd : B(0.0))).store_aligned(out[6]);
     (B(h2) * beta + (AlongLink ? B(0.0) : B(h) * kd)).store_aligned(out[7]);
-    (void)l;
   };
   auto emit = [&](std::int32_t l, int lanes) {
     for (int k = 0; k < lanes; ++k) {
@@ -286,9 +234,9 @@ void link_prepare(const LinkArrays& L, const double* x4, const double* v4, doubl
     load_transposed<Arch>(x4 + j0, x4 + j1, x4 + j2, x4 + j3, xj, yj, zj);
     load_transposed<Arch>(v4 + i0, v4 + i1, v4 + i2, v4 + i3, vxi, vyi, vzi);
     load_transposed<Arch>(v4 + j0, v4 + j1, v4 + j2, v4 + j3, vxj, vyj, vzj);
-    batch(l, xj - xi, yj - yi, zj - zi, vxj - vxi, vyj - vyi, vzj - vzi,
-          B::load_unaligned(L.rest + l), B::load_unaligned(L.ks + l),
-          B::load_unaligned(L.kd + l), B::load_unaligned(L.kl + l), B::load_unaligned(L.es + l));
+    batch(xj - xi, yj - yi, zj - zi, vxj - vxi, vyj - vyi, vzj - vzi, B::load_unaligned(L.rest + l),
+          B::load_unaligned(L.ks + l), B::load_unaligned(L.kd + l), B::load_unaligned(L.kl + l),
+          B::load_unaligned(L.es + l));
     emit(l, 4);
   }
   if (l < end) {  // the remainder: fill the missing lanes with copies of the last link
@@ -309,7 +257,7 @@ void link_prepare(const LinkArrays& L, const double* x4, const double* v4, doubl
       c[3][k] = L.kl[q];
       c[4][k] = L.es[q];
     }
-    batch(l, B::load_aligned(d[0]), B::load_aligned(d[1]), B::load_aligned(d[2]),
+    batch(B::load_aligned(d[0]), B::load_aligned(d[1]), B::load_aligned(d[2]),
           B::load_aligned(d[3]), B::load_aligned(d[4]), B::load_aligned(d[5]),
           B::load_aligned(c[0]), B::load_aligned(c[1]), B::load_aligned(c[2]),
           B::load_aligned(c[3]), B::load_aligned(c[4]));
@@ -324,7 +272,7 @@ template <class Arch>
 void link_apply(const std::int32_t* ij, const double* blocks, const double* p4, double* y,
                 std::int32_t begin, std::int32_t end) noexcept {
   using B = xsimd::batch<double, Arch>;
-  RunScatter scatter(y);  // puts -g: y_i += (-g), y_j -= (-g)
+  RunScatter<Arch> scatter(y);  // puts -g: y_i += (-g), y_j -= (-g)
   alignas(64) double gx[4], gy[4], gz[4];
   std::int32_t l = begin;
   for (; l + 4 <= end; l += 4) {

@@ -18,6 +18,8 @@ LinkPrepareKernel avx2_link_prepare_kernel(bool bilinear, bool along_link) noexc
   return along_link ? &link_prepare<Avx2, false, true> : &link_prepare<Avx2, false, false>;
 }
 
-LinkApplyKernel avx2_link_apply_kernel() noexcept { return &link_apply<Avx2>; }
+LinkApplyKernel avx2_link_apply_kernel() noexcept {
+  return &link_apply<Avx2>;
+}
 
 }  // namespace fsm::detail::simd
