@@ -521,41 +521,57 @@ TEST(ContactSolver, BallForceConvergesAsTheSpacingShrinks) {
 SphereModel<double> coarse_block() {
   SphereModel<double> m;
   const Index r = m.add_region("block", tissue<double>());
-  add_tetrahedral_part(m, make_cube_lattice(V3(0, 0, 0), Eigen::Vector3i(4, 4, 2), 0.005), r, 0.0025);
+  add_tetrahedral_part(m, make_cube_lattice(V3(0, 0, 0), Eigen::Vector3i(4, 4, 2), 0.005), r,
+                       0.0025);
   for (Index i = 0; i < m.num_nodes(); ++i)
     if (m.rest_positions()(i, 2) < 1e-9) m.set_fixed(i);
   return m;
 }
 
+// The same 1 mm ball against coarse_block() through the vertex contact and the face contact.
+struct BallOnCoarseBlock {
+  SphereModel<double> m = coarse_block();
+  ForceModel<double> fv{m}, ff{m};
+  ContactSolver<double> by_vertex{m, fv}, by_face{m, ff, face_options()};
+  BallOnCoarseBlock() {
+    Instrument<double> ball;
+    ball.shape = SphereShape<double>{0.001};
+    ball.friction = 0;
+    by_vertex.add_instrument(ball);
+    by_face.add_instrument(ball);
+  }
+  static ContactOptions<double> face_options() {
+    ContactOptions<double> o;
+    o.face_contact = true;
+    return o;
+  }
+  // Both solvers' contacts with the ball's centre at p; false if either refused the model.
+  bool press(const V3& p) {
+    by_vertex.instrument(0).pose.position = p;
+    by_face.instrument(0).pose.position = p;
+    return by_vertex.compute(m, fv) && by_face.compute(m, ff);
+  }
+};
+
 // Between vertices the ball slips through the vertex contact and is held by the faces; the
 // face contact's forces balance the instrument's wrench (force and torque).
 TEST(ContactSolver, FaceContactHoldsAProbeSmallerThanTheVertexSpacing) {
-  SphereModel<double> m = coarse_block();
-  ForceModel<double> fv(m), ff(m);
-  ContactOptions<double> faces;
-  faces.face_contact = true;
-  ContactSolver<double> by_vertex(m, fv), by_face(m, ff, faces);
-  Instrument<double> ball;
-  ball.shape = SphereShape<double>{0.001};
-  ball.friction = 0;
-  ball.pose.position = V3(0.0065, 0.0077, 0.010 + 0.001 - 0.0005);  // 0.5 mm into a top face
-  by_vertex.add_instrument(ball);
-  by_face.add_instrument(ball);
-  ASSERT_TRUE(by_vertex.compute(m, fv));
-  ASSERT_TRUE(by_face.compute(m, ff));
-  EXPECT_EQ(by_vertex.num_contacts(), 0);  // no vertex within 1 mm: the probe would pass through
-  ASSERT_GE(by_face.num_contacts(), 3);
-  const Wrench<double>& w = by_face.wrench(0);
+  BallOnCoarseBlock b;
+  const V3 centre(0.0065, 0.0077, 0.010 + 0.001 - 0.0005);  // 0.5 mm into a top face
+  ASSERT_TRUE(b.press(centre));
+  EXPECT_EQ(b.by_vertex.num_contacts(), 0);  // no vertex within 1 mm: the probe would pass through
+  ASSERT_GE(b.by_face.num_contacts(), 3);
+  const Wrench<double>& w = b.by_face.wrench(0);
   EXPECT_GT(w.force.z(), 0.0);  // the tissue pushes the probe back up
   EXPECT_LT(std::hypot(w.force.x(), w.force.y()), 0.2 * w.force.z());
   V3 f = V3::Zero(), t = V3::Zero();
   double bound = 0;
-  for (Index q = 0; q < by_face.num_contacts(); ++q) {
-    const Contact<double>& c = by_face.contacts()[q];
+  for (Index q = 0; q < b.by_face.num_contacts(); ++q) {
+    const Contact<double>& c = b.by_face.contacts()[q];
     EXPECT_LT(c.normal.z(), -0.8);  // each vertex pushed into the block
     f += c.force;
-    t += (c.point - ball.pose.position).cross(c.force);
-    bound += by_face.contact_stiffness(c.sphere) * 0.0005;
+    t += (c.point - centre).cross(c.force);
+    bound += b.by_face.contact_stiffness(c.sphere) * 0.0005;
   }
   EXPECT_LT((f + w.force).norm(), 1e-12 * w.force.norm());
   EXPECT_LT((t + w.torque).norm(), 1e-12 * w.force.norm());
@@ -567,31 +583,18 @@ TEST(ContactSolver, FaceContactHoldsAProbeSmallerThanTheVertexSpacing) {
 // Slid at a fixed depth across faces, edges and vertices, the face contact's force never drops to
 // zero and changes continuously; the vertex contact's drops to zero between vertices.
 TEST(ContactSolver, FaceContactForceIsContinuousAsTheProbeSlides) {
-  SphereModel<double> m = coarse_block();
-  ForceModel<double> fv(m), ff(m);
-  ContactOptions<double> faces;
-  faces.face_contact = true;
-  ContactSolver<double> by_vertex(m, fv), by_face(m, ff, faces);
-  Instrument<double> ball;
-  ball.shape = SphereShape<double>{0.001};
-  ball.friction = 0;
-  by_vertex.add_instrument(ball);
-  by_face.add_instrument(ball);
+  BallOnCoarseBlock b;
   std::vector<double> fz, vz;
   for (int s = 0; s <= 200; ++s) {  // 10 mm along a line crossing edges and passing a vertex
-    const V3 p(0.0048 + 0.00005 * s, 0.0050 + 0.00002 * s, 0.010 + 0.001 - 0.0003);
-    by_face.instrument(0).pose.position = p;
-    by_vertex.instrument(0).pose.position = p;
-    ASSERT_TRUE(by_face.compute(m, ff));
-    ASSERT_TRUE(by_vertex.compute(m, fv));
-    fz.push_back(by_face.wrench(0).force.z());
-    vz.push_back(by_vertex.wrench(0).force.z());
+    ASSERT_TRUE(b.press(V3(0.0048 + 0.00005 * s, 0.0050 + 0.00002 * s, 0.010 + 0.001 - 0.0003)));
+    fz.push_back(b.by_face.wrench(0).force.z());
+    vz.push_back(b.by_vertex.wrench(0).force.z());
   }
   const double mean = std::accumulate(fz.begin(), fz.end(), 0.0) / double(fz.size());
   double jump = 0;
   for (std::size_t s = 1; s < fz.size(); ++s) jump = std::max(jump, std::abs(fz[s] - fz[s - 1]));
   EXPECT_GT(*std::min_element(fz.begin(), fz.end()), 0.2 * mean);
-  EXPECT_LT(jump, 0.1 * mean);  // 50 um steps
+  EXPECT_LT(jump, 0.1 * mean);                              // 50 um steps
   EXPECT_EQ(*std::min_element(vz.begin(), vz.end()), 0.0);  // the negative control
 }
 
