@@ -403,8 +403,9 @@ const bool registered = [] {
                                  [p](benchmark::State& s) { BM_UterusContact(s, p, false); })
         ->Unit(benchmark::kMicrosecond);
     // The probe against the tetrahedral parts' faces (ContactOptions::face_contact).
-    benchmark::RegisterBenchmark((std::string("BM_UterusContact/") + p + "/parts:0/faces:1").c_str(),
-                                 [p](benchmark::State& s) { BM_UterusContact(s, p, false, true); })
+    benchmark::RegisterBenchmark(
+        (std::string("BM_UterusContact/") + p + "/parts:0/faces:1").c_str(),
+        [p](benchmark::State& s) { BM_UterusContact(s, p, false, true); })
         ->Unit(benchmark::kMicrosecond);
   }
   return true;

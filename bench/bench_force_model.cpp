@@ -28,7 +28,8 @@ void sizes(benchmark::internal::Benchmark* b) {
     for (int threads : {1, 2})
       for (int bilinear : {0, 1})
         for (int simd : {0, 1}) b->Args({cells_for_links(links), threads, bilinear, simd});
-  // simd: the SIMD link kernel (ForceModel::Options::simd; double only: float runs the scalar loop).
+  // simd: the SIMD link kernel (ForceModel::Options::simd; double only: float runs the scalar
+  // loop).
   b->ArgNames({"cells", "threads", "bilinear", "simd"})->UseRealTime()->MinWarmUpTime(0.05);
 }
 

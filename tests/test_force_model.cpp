@@ -91,6 +91,8 @@ TEST(ForceModel, GravityAndExternalForcesAreAdded) {
 // both damping models, linear and bilinear links, one and two threads, with fixed nodes (so the
 // loops see several link ranges) and a link of zero length.
 TEST(ForceModel, SimdLinkKernelMatchesTheScalarLoop) {
+  // Without AVX2+FMA (or without xsimd at build time) Options::simd runs the scalar loops, so
+  // there is nothing to compare; the scalar loops have their own tests.
   if (std::string(detail::simd::instruction_set()) == "none")
     GTEST_SKIP() << "no SIMD link kernel for this CPU or build";
   std::mt19937 rng(21);
@@ -132,6 +134,8 @@ TEST(ForceModel, SimdLinkKernelMatchesTheScalarLoop) {
 // blocks), strained past the bilinear switch, both damping models and both Jacobian forms, one and
 // two threads.
 TEST(ForceModel, SimdImplicitLinkKernelsMatchTheScalarLoops) {
+  // Without AVX2+FMA (or without xsimd at build time) Options::simd runs the scalar loops, so
+  // there is nothing to compare; the scalar loops have their own tests.
   if (std::string(detail::simd::instruction_set()) == "none")
     GTEST_SKIP() << "no SIMD link kernel for this CPU or build";
   std::mt19937 rng(5);
@@ -150,9 +154,10 @@ TEST(ForceModel, SimdImplicitLinkKernelsMatchTheScalarLoops) {
           }
           for (int part = 0; part < 3; ++part) {
             const Index r = model.add_region("part" + std::to_string(part), mat);
-            add_tetrahedral_part(
-                model, make_cube_lattice(Vector3<double>(0.05 * part, 0, 0), Eigen::Vector3i(3, 2, 2), 0.005),
-                r, 0.0025);
+            add_tetrahedral_part(model,
+                                 make_cube_lattice(Vector3<double>(0.05 * part, 0, 0),
+                                                   Eigen::Vector3i(3, 2, 2), 0.005),
+                                 r, 0.0025);
           }
           model.set_region_law(1, ForceLaw::continuum);
           for (Index i = 0; i < model.num_nodes(); ++i) {
@@ -189,7 +194,8 @@ TEST(ForceModel, SimdImplicitLinkKernelsMatchTheScalarLoops) {
           for (Index i = 0; i < n; ++i)
             for (int c = 0; c < 3; ++c) p(i, c) = g(rng);
           scalar.apply_implicit(model, ba.data(), p, ya);
-          simd.apply_implicit(model, ba.data(), p, yb);  // the same blocks: only the product differs
+          simd.apply_implicit(model, ba.data(), p,
+                              yb);  // the same blocks: only the product differs
           EXPECT_LE((ya - yb).cwiseAbs().maxCoeff(), 1e-13 * ya.cwiseAbs().maxCoeff());
         }
 }

@@ -344,6 +344,8 @@ class ForceModel {
 
  private:
   void resize_scratch();
+  // Options::simd is on and the padded copies are sized for n nodes (double only: see refresh()).
+  [[nodiscard]] bool simd_ready(Index n) const noexcept;
   // Copies x (and v, unless null) into m_x4 (m_v4), four per node, for the SIMD kernels.
   void pad_states(const Scalar* x, const Scalar* v, Index n) noexcept;
 

@@ -524,6 +524,11 @@ void ForceModel<Scalar>::set_options(const Options& options) {
 }
 
 template <typename Scalar>
+bool ForceModel<Scalar>::simd_ready(Index n) const noexcept {
+  return m_options.simd && m_x4.size() == 4 * std::size_t(n);
+}
+
+template <typename Scalar>
 void ForceModel<Scalar>::pad_states(const Scalar* x, const Scalar* v, Index n) noexcept {
   if constexpr (std::is_same_v<Scalar, double>) {
     for (Index i = 0; i < n; ++i) {
@@ -573,7 +578,7 @@ void ForceModel<Scalar>::evaluate(const SphereModel<Scalar>& model, const ConstP
   detail::simd::LinkForceKernel simd_kernel = nullptr;
   detail::simd::LinkArrays simd_links{};
   if constexpr (std::is_same_v<Scalar, double>) {
-    if (m_options.simd && m_x4.size() == 4 * std::size_t(model.num_nodes()))
+    if (simd_ready(model.num_nodes()))
       simd_kernel = detail::simd::link_force_kernel(bilinear, dm == DampingModel::along_link);
     if (simd_kernel) {  // one load per node: x, y, z padded to four
       simd_links = {L.ij, L.rest, L.ks, L.kd, L.kl, L.es};
@@ -709,8 +714,7 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
     detail::simd::LinkPrepareKernel simd_prepare = nullptr;
     detail::simd::LinkArrays simd_links{};
     if constexpr (std::is_same_v<Scalar, double>) {
-      if (m_options.simd && form != JacobianForm::exact &&
-          m_x4.size() == 4 * std::size_t(model.num_nodes()))
+      if (form != JacobianForm::exact && simd_ready(model.num_nodes()))
         simd_prepare = detail::simd::link_prepare_kernel(model.has_bilinear_links(),
                                                          dm == DampingModel::along_link);
       if (simd_prepare) {
@@ -731,8 +735,8 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
             const Index lo = std::max(a, begin), hi = std::min(b, end);
             if (lo >= hi) continue;
             zero(l, lo);
-            simd_prepare(simd_links, m_x4.data(), m_v4.data(), h,
-                         form == JacobianForm::definite, blocks, out, lo, hi);
+            simd_prepare(simd_links, m_x4.data(), m_v4.data(), h, form == JacobianForm::definite,
+                         blocks, out, lo, hi);
             l = hi;
           }
           zero(l, end);
@@ -931,8 +935,7 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
   };
   detail::simd::LinkApplyKernel simd_apply = nullptr;
   if constexpr (std::is_same_v<Scalar, double>) {
-    if (m_options.simd && m_x4.size() == 4 * std::size_t(model.num_nodes()))
-      simd_apply = detail::simd::link_apply_kernel();
+    if (simd_ready(model.num_nodes())) simd_apply = detail::simd::link_apply_kernel();
     if (simd_apply) pad_states(pp, nullptr, model.num_nodes());  // p into m_x4
   }
   auto kernel_range = [&](Index begin, Index end, Scalar* out) {

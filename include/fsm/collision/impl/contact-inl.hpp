@@ -179,8 +179,8 @@ void ContactSolver<Scalar>::sample_face(const SphereModel<Scalar>& model,
   if ((fmax.array() < lo.array()).any() || (fmin.array() > hi.array()).any()) return;
   {  // the face's bounding sphere must meet the instrument before its samples are tested
     const Vector3<Scalar> c = (p0 + p1 + p2) / Scalar(3);
-    const Scalar r = std::sqrt(std::max({(p0 - c).squaredNorm(), (p1 - c).squaredNorm(),
-                                         (p2 - c).squaredNorm()}));
+    const Scalar r = std::sqrt(
+        std::max({(p0 - c).squaredNorm(), (p1 - c).squaredNorm(), (p2 - c).squaredNorm()}));
     ++m_narrow_tests;
     if (!contact(ins.shape, ins.pose, c, r)) return;
   }
@@ -216,9 +216,11 @@ void ContactSolver<Scalar>::sample_face(const SphereModel<Scalar>& model,
   // The centroids of the m x m split: upright sub-triangles, then the inverted ones.
   const Scalar h = Scalar(1) / Scalar(m);
   for (int i = 0; i < m; ++i)
-    for (int j = 0; i + j < m; ++j) sample((Scalar(i) + Scalar(1) / 3) * h, (Scalar(j) + Scalar(1) / 3) * h);
+    for (int j = 0; i + j < m; ++j)
+      sample((Scalar(i) + Scalar(1) / 3) * h, (Scalar(j) + Scalar(1) / 3) * h);
   for (int i = 0; i + 1 < m; ++i)
-    for (int j = 0; i + j + 1 < m; ++j) sample((Scalar(i) + Scalar(2) / 3) * h, (Scalar(j) + Scalar(2) / 3) * h);
+    for (int j = 0; i + j + 1 < m; ++j)
+      sample((Scalar(i) + Scalar(2) / 3) * h, (Scalar(j) + Scalar(2) / 3) * h);
 }
 
 template <typename Scalar>
