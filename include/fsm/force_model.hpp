@@ -135,9 +135,10 @@ class ForceModel {
     /// implicit solve instead of springs along their edges, which cannot resist a sliver's apex
     /// moving across its base (docs/physics.md section 11). 0 = none, above 1 = every element
     /// (each costs about five times its edge springs per solver iteration).
-    /// Run the link loops (the forces, and the implicit solve's link blocks and products) on the
-    /// SIMD kernels when the CPU has them (AVX2 with FMA; double only: detail/simd_links.hpp);
-    /// false: the scalar loops, the reference. Both give the same results to rounding.
+    /// Run the link loops (the forces, and the implicit solve's link blocks and products) and the
+    /// continuum law's element loops (forces, energy) on the SIMD kernels when the CPU has them
+    /// (AVX2 with FMA; double only: detail/simd_links.hpp, detail/simd_tets.hpp); false: the
+    /// scalar loops, the reference. Both give the same results to rounding.
     bool simd{true};
     Scalar element_tangent_quality{
         Scalar(detail::ContinuumTerm<Scalar>::default_element_tangent_quality)};

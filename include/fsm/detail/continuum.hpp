@@ -36,6 +36,7 @@
 #include <vector>
 
 #include "fsm/detail/parallel.hpp"
+#include "fsm/detail/simd_tets.hpp"
 #include "fsm/sphere_model.hpp"
 #include "fsm/types.hpp"
 
@@ -347,6 +348,17 @@ class ContinuumTerm {
     m_node_count.assign(std::size_t(n), 0);
     m_edge_count.assign(num_edges(), 0);
     apply_topology(model.tetrahedron_intact().data());
+    build_batches();
+  }
+
+  /// Whether add_forces() and energy() run the element kernels on SIMD registers where the CPU
+  /// has them (default true; the scalar loops are the reference).
+  void set_simd(bool on) noexcept { m_simd = on; }
+  /// Whether the next add_forces() and energy() run the element kernels.
+  [[nodiscard]] bool simd_active() const noexcept {
+    if constexpr (std::is_same_v<Scalar, double>)
+      return m_simd && !m_batch_rest.empty() && simd::tet_force_kernel() != nullptr;
+    return false;
   }
 
   /// Takes the given model tetrahedra out (those of continuum regions not out already), updating
@@ -397,7 +409,9 @@ class ContinuumTerm {
     std::fill(rate, rate + m_num_nodes, Scalar(0));
     const std::size_t nt = m_volume.size();
     m_dense.clear();
-    // Pass 1: deviatoric forces; current volumes and their rates scattered to the nodes.
+    // Pass 1: deviatoric forces; current volumes and their rates scattered to the nodes. The
+    // per-element work on the SIMD kernel where there is one (into m_batch_out), else here.
+    const bool kernel = run_force_kernel(x, viscous ? v : nullptr);
     for (std::size_t t = 0; t < nt; ++t) {
       if (m_removed[t]) {  // zero gradients: the later passes add nothing for it
         std::fill_n(&m_grad[12 * t], 12, Scalar(0));
@@ -406,39 +420,59 @@ class ContinuumTerm {
         continue;
       }
       const Index* id = &m_tets[4 * t];
-      Matrix3<Scalar> Ds;
-      Vector3<Scalar> g[4];
-      load_edges(x, id, Ds);
-      volume_gradient(Ds, g);
-      for (int k = 0; k < 4; ++k)
-        for (int c = 0; c < 3; ++c) m_grad[12 * t + 3 * std::size_t(k) + std::size_t(c)] = g[k][c];
-      const Matrix3<Scalar> F = Ds * dm_inv(t);
-      Matrix3<Scalar> P;
-      Scalar stiffening(1), gj(1), distortion(0);
-      deviatoric(F, m_c10[t], m_c10_large[t], m_q_switch[t], Scalar(j_min), &P, &stiffening, &gj,
-                 &distortion);
-      // The I1 curvature of the energy is 2 C10 g(J): stiffer in compression.
-      m_state_factor[t] = stiffening * std::max(Scalar(1), gj);
-      const Matrix3<Scalar> H = -m_volume[t] * P * dm_inv(t).transpose();
+      Matrix3<Scalar> H, F;
+      Scalar vt, dvt(0), distortion(0);
+      bool have_f = false;
+      if (kernel) {
+        const Scalar* o = &m_batch_out[std::size_t(simd::tet_out_stride) * (t / 4) + t % 4];
+        for (int k = 0; k < 9; ++k) H(k % 3, k / 3) = o[4 * k];
+        for (int k = 0; k < 12; ++k)
+          m_grad[12 * t + std::size_t(k)] = o[simd::tet_out_grad + 4 * k];
+        vt = o[simd::tet_out_volume];
+        dvt = o[simd::tet_out_rate];
+        m_state_factor[t] = o[simd::tet_out_state];
+        distortion = o[simd::tet_out_distortion];
+      } else {
+        Matrix3<Scalar> Ds;
+        Vector3<Scalar> g[4];
+        load_edges(x, id, Ds);
+        volume_gradient(Ds, g);
+        for (int k = 0; k < 4; ++k)
+          for (int c = 0; c < 3; ++c)
+            m_grad[12 * t + 3 * std::size_t(k) + std::size_t(c)] = g[k][c];
+        F = Ds * dm_inv(t);
+        have_f = true;
+        Matrix3<Scalar> P;
+        Scalar stiffening(1), gj(1);
+        deviatoric(F, m_c10[t], m_c10_large[t], m_q_switch[t], Scalar(j_min), &P, &stiffening, &gj,
+                   &distortion);
+        // The I1 curvature of the energy is 2 C10 g(J): stiffer in compression.
+        m_state_factor[t] = stiffening * std::max(Scalar(1), gj);
+        H = -m_volume[t] * P * dm_inv(t).transpose();
+        vt = Ds.col(0).dot(Ds.col(1).cross(Ds.col(2))) / Scalar(6);
+        if (viscous)
+          for (int k = 0; k < 4; ++k) dvt += g[k].dot(row(v, id[k]));
+      }
       Vector3<Scalar> f0 = Vector3<Scalar>::Zero();
       for (int k = 0; k < 3; ++k) {
         add(f, id[k + 1], H.col(k));
         f0 -= H.col(k);
       }
       add(f, id[0], f0);
-      const Scalar vt = Ds.col(0).dot(Ds.col(1).cross(Ds.col(2))) / Scalar(6);
       const bool strained = distortion > Scalar(element_tangent_strain) ||
                             std::abs(vt / m_volume[t] - Scalar(1)) > Scalar(element_tangent_strain);
       m_element_tangent[t] = std::uint8_t(m_poor_shape[t] || strained);
       if (m_element_tangent[t]) {
+        if (!have_f) {
+          Matrix3<Scalar> Ds;
+          load_edges(x, id, Ds);
+          F = Ds * dm_inv(t);
+        }
         // Its F, for prepare_implicit() to turn into its rotation (the slot holds that after).
         Eigen::Map<Matrix3<Scalar>> slot(&m_dense_rotation[9 * m_dense.size()]);
         slot = F;
         m_dense.push_back(Index(t));  // within its capacity
       }
-      Scalar dvt(0);
-      if (viscous)
-        for (int k = 0; k < 4; ++k) dvt += g[k].dot(row(v, id[k]));
       for (int k = 0; k < 4; ++k) {
         volume_now[id[k]] += vt / Scalar(4);
         rate[id[k]] += dvt / Scalar(4);
@@ -490,15 +524,23 @@ class ContinuumTerm {
     std::vector<Scalar>& volume_now = m_energy_scratch;
     volume_now.assign(std::size_t(m_num_nodes), Scalar(0));  // reserved by refresh: no growth
     Scalar e(0);
+    const bool kernel = run_energy_kernel(x);
     for (std::size_t t = 0; t < m_volume.size(); ++t) {
       if (m_removed[t]) continue;
       const Index* id = &m_tets[4 * t];
-      Matrix3<Scalar> Ds;
-      load_edges(x, id, Ds);
-      const Matrix3<Scalar> F = Ds * dm_inv(t);
-      e += m_volume[t] *
-           deviatoric<Scalar>(F, m_c10[t], m_c10_large[t], m_q_switch[t], Scalar(j_min), nullptr);
-      const Scalar vt = Ds.col(0).dot(Ds.col(1).cross(Ds.col(2))) / Scalar(6);
+      Scalar vt;
+      if (kernel) {
+        const Scalar* o = &m_energy_out[std::size_t(simd::tet_energy_stride) * (t / 4) + t % 4];
+        e += o[0];
+        vt = o[4];
+      } else {
+        Matrix3<Scalar> Ds;
+        load_edges(x, id, Ds);
+        const Matrix3<Scalar> F = Ds * dm_inv(t);
+        e += m_volume[t] *
+             deviatoric<Scalar>(F, m_c10[t], m_c10_large[t], m_q_switch[t], Scalar(j_min), nullptr);
+        vt = Ds.col(0).dot(Ds.col(1).cross(Ds.col(2))) / Scalar(6);
+      }
       for (int k = 0; k < 4; ++k) volume_now[std::size_t(id[k])] += vt / Scalar(4);
     }
     for (Index a = 0; a < m_num_nodes; ++a) {
@@ -856,6 +898,68 @@ class ContinuumTerm {
   }
 
  private:
+  // The element kernels' inputs in batches of four (simd_tets.hpp), the last batch filled with
+  // copies of the last element (its extra lanes are computed and never read), and their outputs.
+  void build_batches() {
+    m_batch_nodes.clear();
+    m_batch_rest.clear();
+    m_batch_out.clear();
+    m_energy_out.clear();
+    m_x4.clear();
+    m_v4.clear();
+    if constexpr (std::is_same_v<Scalar, double>) {
+      const std::size_t nt = m_volume.size(), nb = (nt + 3) / 4;
+      if (nt == 0) return;
+      m_batch_nodes.assign(16 * nb, 0);
+      m_batch_rest.assign(std::size_t(simd::tet_rest_stride) * nb, 0.0);
+      for (std::size_t b = 0; b < nb; ++b)
+        for (std::size_t l = 0; l < 4; ++l) {
+          const std::size_t t = std::min(4 * b + l, nt - 1);
+          for (std::size_t c = 0; c < 4; ++c) m_batch_nodes[16 * b + 4 * c + l] = m_tets[4 * t + c];
+          double* R = &m_batch_rest[std::size_t(simd::tet_rest_stride) * b + l];
+          for (std::size_t k = 0; k < 9; ++k) R[4 * k] = m_dm_inv[9 * t + k];
+          R[simd::tet_rest_c10] = m_c10[t];
+          R[simd::tet_rest_c10_large] = m_c10_large[t];
+          R[simd::tet_rest_q_switch] = m_q_switch[t];
+          R[simd::tet_rest_volume] = m_volume[t];
+        }
+      m_batch_out.assign(std::size_t(simd::tet_out_stride) * nb, 0.0);
+      m_energy_out.assign(std::size_t(simd::tet_energy_stride) * nb, 0.0);
+      m_x4.assign(4 * std::size_t(m_num_nodes), 0.0);
+      m_v4.assign(4 * std::size_t(m_num_nodes), 0.0);
+    }
+  }
+  // Copies n nodes' rows of 3 into rows of 4.
+  static void pad(const Scalar* a, Index n, Scalar* a4) noexcept {
+    for (Index i = 0; i < n; ++i)
+      for (int c = 0; c < 3; ++c) a4[4 * std::ptrdiff_t(i) + c] = a[3 * std::ptrdiff_t(i) + c];
+  }
+  // Runs the force kernel on every batch at (x, v) (v null: no rates); false where it does not run.
+  bool run_force_kernel(const Scalar* x, const Scalar* v) noexcept {
+    if constexpr (std::is_same_v<Scalar, double>) {
+      if (!simd_active()) return false;
+      pad(x, m_num_nodes, m_x4.data());
+      if (v) pad(v, m_num_nodes, m_v4.data());
+      simd::tet_force_kernel()(m_batch_nodes.data(), m_batch_rest.data(), m_x4.data(),
+                               v ? m_v4.data() : nullptr, j_min, m_batch_out.data(), 0,
+                               std::int32_t(m_batch_nodes.size() / 16));
+      return true;
+    }
+    (void)x, (void)v;
+    return false;
+  }
+  bool run_energy_kernel(const Scalar* x) const noexcept {
+    if constexpr (std::is_same_v<Scalar, double>) {
+      if (!simd_active() || !simd::tet_energy_kernel()) return false;
+      pad(x, m_num_nodes, m_x4.data());
+      simd::tet_energy_kernel()(m_batch_nodes.data(), m_batch_rest.data(), m_x4.data(), j_min,
+                                m_energy_out.data(), 0, std::int32_t(m_batch_nodes.size() / 16));
+      return true;
+    }
+    (void)x;
+    return false;
+  }
+
   static Vector3<Scalar> row(const Scalar* a, Index i) noexcept {
     const Scalar* p = a + 3 * std::ptrdiff_t(i);
     return {p[0], p[1], p[2]};
@@ -1039,6 +1143,11 @@ class ContinuumTerm {
   std::vector<Scalar> m_node_coefficient;  // per node
   std::vector<Scalar> m_node_scratch;      // per node
   mutable std::vector<Scalar> m_energy_scratch;
+  // The element kernels (build_batches()): inputs, outputs, and the states padded to 4 per node.
+  bool m_simd{true};
+  std::vector<std::int32_t> m_batch_nodes;
+  std::vector<Scalar> m_batch_rest, m_batch_out, m_v4;
+  mutable std::vector<Scalar> m_x4, m_energy_out;
 };
 
 }  // namespace fsm::detail

@@ -417,6 +417,7 @@ void ForceModel<Scalar>::refresh(const SphereModel<Scalar>& model) {
   m_force_ranges.reserve(std::size_t(model.num_links()) / 2 + 2);
   m_ranges.reserve(std::size_t(model.num_links()) / 2 + 2);
   m_continuum.refresh(model);
+  m_continuum.set_simd(m_options.simd);
   update_topology(model);
   m_element_force.assign(m_continuum.empty() ? 0 : 3 * std::size_t(n), Scalar(0));
   m_base_rhs.assign(3 * std::size_t(n), Scalar(0));
@@ -520,6 +521,7 @@ void ForceModel<Scalar>::set_options(const Options& options) {
   m_options = options;
   if (m_continuum.element_tangent_quality() != options.element_tangent_quality)
     m_continuum.set_element_tangent_quality(options.element_tangent_quality);
+  m_continuum.set_simd(options.simd);
   resize_scratch();
 }
 

@@ -1,7 +1,8 @@
-// Run-time choice of the link kernels (compiled with the library's baseline flags: it must run on
-// any x86-64 CPU, so it only asks the CPU what it has).
+// Run-time choice of the link and element kernels (compiled with the library's baseline flags: it
+// must run on any x86-64 CPU, so it only asks the CPU what it has).
 
 #include "fsm/detail/simd_links.hpp"
+#include "fsm/detail/simd_tets.hpp"
 
 namespace fsm::detail::simd {
 
@@ -9,6 +10,8 @@ namespace fsm::detail::simd {
 LinkForceKernel avx2_link_force_kernel(bool bilinear, bool along_link) noexcept;
 LinkPrepareKernel avx2_link_prepare_kernel(bool bilinear, bool along_link) noexcept;
 LinkApplyKernel avx2_link_apply_kernel() noexcept;
+TetForceKernel avx2_tet_force_kernel() noexcept;
+TetEnergyKernel avx2_tet_energy_kernel() noexcept;
 
 namespace {
 bool has_avx2_fma() noexcept {
@@ -29,6 +32,14 @@ LinkApplyKernel link_apply_kernel() noexcept {
   return has_avx2_fma() ? avx2_link_apply_kernel() : nullptr;
 }
 
+TetForceKernel tet_force_kernel() noexcept {
+  return has_avx2_fma() ? avx2_tet_force_kernel() : nullptr;
+}
+
+TetEnergyKernel tet_energy_kernel() noexcept {
+  return has_avx2_fma() ? avx2_tet_energy_kernel() : nullptr;
+}
+
 const char* instruction_set() noexcept {
   return has_avx2_fma() ? "avx2+fma" : "none";
 }
@@ -40,6 +51,12 @@ LinkPrepareKernel link_prepare_kernel(bool, bool) noexcept {
   return nullptr;
 }
 LinkApplyKernel link_apply_kernel() noexcept {
+  return nullptr;
+}
+TetForceKernel tet_force_kernel() noexcept {
+  return nullptr;
+}
+TetEnergyKernel tet_energy_kernel() noexcept {
   return nullptr;
 }
 const char* instruction_set() noexcept {

@@ -1,0 +1,45 @@
+#pragma once
+
+// The continuum law's element loop on SIMD registers (xsimd), chosen at run time for the CPU, as
+// the link kernels are (simd_links.hpp): a plain interface, no Eigen. ContinuumTerm<double> uses
+// it for its per-element work (deformation gradient, neo-Hookean stress, element forces, volume
+// gradients, energy) and keeps the scatter to the nodes, the pressures and the flags; its scalar
+// loop stays the reference the tests compare with.
+
+#include <cstdint>
+
+namespace fsm::detail::simd {
+
+/// Elements come in batches of four (the last one filled with copies of the last element).
+/// Per batch, `nodes` holds 16 indices (corner c of lane l at 4 c + l) and `rest` holds
+/// tet_rest_stride doubles, each quantity as 4 lanes: D_m^-1 (entry r + 3 c at [4 (r + 3 c)]),
+/// then C10, C10 beyond the switch (0: linear), I1bar - 3 at the switch, rest volume.
+constexpr int tet_rest_stride = 52;
+constexpr int tet_rest_c10 = 36, tet_rest_c10_large = 40, tet_rest_q_switch = 44,
+              tet_rest_volume = 48;
+
+/// Per batch, the force kernel writes tet_out_stride doubles, each quantity as 4 lanes:
+/// H = -V P D_m^-T (entry r + 3 c at [4 (r + 3 c)]: the force on corner c + 1; corner 0 gets
+/// minus their sum), the volume gradients (corner k, axis a at [4 (9 + 3 k + a)]), then the
+/// current volume, its rate (0 without velocities), the state factor (bilinear stiffening times
+/// max(1, J^-2/3)) and I1bar - 3.
+constexpr int tet_out_stride = 4 * 25;
+constexpr int tet_out_grad = 4 * 9, tet_out_volume = 4 * 21, tet_out_rate = 4 * 22,
+              tet_out_state = 4 * 23, tet_out_distortion = 4 * 24;
+
+/// The element kernel over batches [begin, end). `x4` and `v4` hold 4 doubles per node; `v4` may
+/// be null (no rate). `j_min`: below it J^-2/3 is extended by its second-order Taylor polynomial.
+using TetForceKernel = void (*)(const std::int32_t* nodes, const double* rest, const double* x4,
+                                const double* v4, double j_min, double* out, std::int32_t begin,
+                                std::int32_t end);
+
+/// Per batch, the energy kernel writes 8 doubles: V W (4 lanes), then the current volume.
+constexpr int tet_energy_stride = 8;
+using TetEnergyKernel = void (*)(const std::int32_t* nodes, const double* rest, const double* x4,
+                                 double j_min, double* out, std::int32_t begin, std::int32_t end);
+
+/// The kernels for this CPU, or nullptr (no SIMD build, or a CPU without AVX2 and FMA).
+TetForceKernel tet_force_kernel() noexcept;
+TetEnergyKernel tet_energy_kernel() noexcept;
+
+}  // namespace fsm::detail::simd

@@ -1,0 +1,190 @@
+#pragma once
+
+// The element kernels' body (simd_tets.hpp), instantiated per instruction set by
+// tet_kernels_<isa>.cpp. The same formulas as detail::deviatoric, detail::volume_factor and
+// ContinuumTerm::add_forces's first pass, four elements per batch.
+
+#include <xsimd/xsimd.hpp>
+
+#include "fsm/detail/simd_tets.hpp"
+#include "link_kernels.hpp"
+
+namespace fsm::detail::simd {
+
+// x^{-2/3} for x > 0 as detail::inverse_cbrt_squared: a seed from the exponent bits, three Newton
+// steps on y^-3 = x and a last one on g = y^2. The seed divides only the high word of the bits by
+// 3 (in doubles: AVX2 has no 64-bit integer division), which moves it by about 2^-20 relative;
+// the Newton steps take it to the same value.
+template <class Arch>
+inline xsimd::batch<double, Arch> inverse_cbrt_squared(
+    const xsimd::batch<double, Arch>& x) noexcept {
+  using B = xsimd::batch<double, Arch>;
+  using U = xsimd::batch<std::uint64_t, Arch>;
+  const U bits = xsimd::bitwise_cast<U>(x);
+  const B high = xsimd::batch_cast<double>(U(bits >> 32));  // exact: below 2^32
+  const B seed_high = B(double(0x553ef0ffULL)) - xsimd::floor(high / B(3.0));
+  // An integer-valued double below 2^52 plus 2^52 holds that integer in its low 52 bits.
+  const U seed_bits = (xsimd::bitwise_cast<U>(seed_high + B(4503599627370496.0)) &
+                       U(std::uint64_t(0xFFFFFFFFFFFFFULL)))
+                      << 32;
+  B y = xsimd::bitwise_cast<B>(seed_bits);
+  for (int k = 0; k < 3; ++k) y *= (B(4.0) - x * y * y * y) * B(1.0 / 3.0);
+  const B g = y * y;
+  return g + g * (B(1.0) - x * x * g * g * g) * B(1.0 / 3.0);
+}
+
+// One batch of elements: everything the kernels share, from the positions.
+template <class Arch>
+struct TetBatch {
+  using B = xsimd::batch<double, Arch>;
+  B X[4], Y[4], Z[4];  // corners
+  B d[3][3];           // edge vectors d[k][axis] = corner k+1 - corner 0
+  B F[3][3];           // F[r][c]
+  B J, I1, g, dg, q, W, slope, stiffening;
+
+  inline void load(const std::int32_t* nodes, const double* x4) noexcept {
+    for (int c = 0; c < 4; ++c) {
+      const std::int32_t* n = nodes + 4 * c;
+      load_transposed<Arch>(x4 + 4 * std::int64_t(n[0]), x4 + 4 * std::int64_t(n[1]),
+                            x4 + 4 * std::int64_t(n[2]), x4 + 4 * std::int64_t(n[3]), X[c], Y[c],
+                            Z[c]);
+    }
+    for (int k = 0; k < 3; ++k) {
+      d[k][0] = X[k + 1] - X[0];
+      d[k][1] = Y[k + 1] - Y[0];
+      d[k][2] = Z[k + 1] - Z[0];
+    }
+  }
+
+  // F = Ds D_m^-1 and the deviatoric energy density and its slope dW/dq.
+  inline void deviatoric(const double* rest, double j_min) noexcept {
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) {
+        B s = d[0][r] * B::load_unaligned(rest + 4 * (0 + 3 * c));
+        s += d[1][r] * B::load_unaligned(rest + 4 * (1 + 3 * c));
+        s += d[2][r] * B::load_unaligned(rest + 4 * (2 + 3 * c));
+        F[r][c] = s;
+      }
+    // J = F_0 . (F_1 x F_2) with F_c the columns.
+    const B c0x = F[1][1] * F[2][2] - F[2][1] * F[1][2];
+    const B c0y = F[2][1] * F[0][2] - F[0][1] * F[2][2];
+    const B c0z = F[0][1] * F[1][2] - F[1][1] * F[0][2];
+    J = F[0][0] * c0x + F[1][0] * c0y + F[2][0] * c0z;
+    I1 = B(0.0);
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) I1 += F[r][c] * F[r][c];
+    // volume_factor: J^-2/3 above j_min, its Taylor extension below.
+    const double g0s = 1.0 / __builtin_cbrt(j_min * j_min);
+    const double g1s = -2.0 / 3.0 * g0s / j_min;
+    const double g2s = 10.0 / 9.0 * g0s / (j_min * j_min);
+    const auto above = J >= B(j_min);
+    const B Ja = xsimd::max(J, B(j_min));
+    const B ga = inverse_cbrt_squared<Arch>(Ja);
+    const B t = J - B(j_min);
+    g = xsimd::select(above, ga, B(g0s) + t * (B(g1s) + B(0.5 * g2s) * t));
+    dg = xsimd::select(above, B(-2.0 / 3.0) * ga / Ja, B(g1s) + B(g2s) * t);
+    q = I1 * g - B(3.0);
+    const B c10 = B::load_unaligned(rest + tet_rest_c10);
+    const B c10l = B::load_unaligned(rest + tet_rest_c10_large);
+    const B qs = B::load_unaligned(rest + tet_rest_q_switch);
+    const auto large = (c10l > B(0.0)) && (q > qs);
+    W = c10 * q;
+    slope = c10;
+    stiffening = B(1.0);
+    if (xsimd::any(large)) {
+      const B s = xsimd::sqrt(xsimd::max(q, qs) / B(3.0)), ss = xsimd::sqrt(qs / B(3.0));
+      const B safe = xsimd::select(large, s, B(1.0));
+      W = xsimd::select(large, W + B(3.0) * (c10l - c10) * (s - ss) * (s - ss), W);
+      slope = xsimd::select(large, c10 + (c10l - c10) * (B(1.0) - ss / safe), slope);
+      stiffening = xsimd::select(large, c10l / c10, stiffening);
+    }
+  }
+};
+
+template <class Arch>
+void tet_forces(const std::int32_t* nodes, const double* rest, const double* x4, const double* v4,
+                double j_min, double* out, std::int32_t begin, std::int32_t end) noexcept {
+  using B = xsimd::batch<double, Arch>;
+  for (std::int32_t b = begin; b < end; ++b) {
+    const std::int32_t* n = nodes + 16 * std::int64_t(b);
+    const double* R = rest + tet_rest_stride * std::int64_t(b);
+    double* o = out + tet_out_stride * std::int64_t(b);
+    TetBatch<Arch> e;
+    e.load(n, x4);
+    e.deviatoric(R, j_min);
+    // cof(F) columns: F_1 x F_2, F_2 x F_0, F_0 x F_1.
+    const auto& F = e.F;
+    B cof[3][3];
+    for (int c = 0; c < 3; ++c) {
+      const int a = (c + 1) % 3, bb = (c + 2) % 3;
+      cof[0][c] = F[1][a] * F[2][bb] - F[2][a] * F[1][bb];
+      cof[1][c] = F[2][a] * F[0][bb] - F[0][a] * F[2][bb];
+      cof[2][c] = F[0][a] * F[1][bb] - F[1][a] * F[0][bb];
+    }
+    // P = slope (2 g F + I1 g' cof); H = -V P D_m^-T.
+    const B twog = B(2.0) * e.g, i1dg = e.I1 * e.dg;
+    B P[3][3];
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) P[r][c] = e.slope * (twog * F[r][c] + i1dg * cof[r][c]);
+    const B V = B::load_unaligned(R + tet_rest_volume);
+    const B mV = B(0.0) - V;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) {
+        B s = P[r][0] * B::load_unaligned(R + 4 * (c + 0));
+        s += P[r][1] * B::load_unaligned(R + 4 * (c + 3));
+        s += P[r][2] * B::load_unaligned(R + 4 * (c + 6));
+        (mV * s).store_unaligned(o + 4 * (r + 3 * c));
+      }
+    // Volume gradients: (1/6) d1 x d2, d2 x d0, d0 x d1, and minus their sum; v = d0 . (d1 x d2)
+    // / 6.
+    const auto& d = e.d;
+    B gr[4][3];
+    for (int k = 0; k < 3; ++k) {
+      const int a = (k + 1) % 3, bb = (k + 2) % 3;
+      gr[k + 1][0] = d[a][1] * d[bb][2] - d[a][2] * d[bb][1];
+      gr[k + 1][1] = d[a][2] * d[bb][0] - d[a][0] * d[bb][2];
+      gr[k + 1][2] = d[a][0] * d[bb][1] - d[a][1] * d[bb][0];
+    }
+    const B vt = (d[0][0] * gr[1][0] + d[0][1] * gr[1][1] + d[0][2] * gr[1][2]) / B(6.0);
+    for (int k = 1; k < 4; ++k)
+      for (int a = 0; a < 3; ++a) gr[k][a] = gr[k][a] / B(6.0);
+    for (int a = 0; a < 3; ++a) gr[0][a] = B(0.0) - (gr[1][a] + gr[2][a] + gr[3][a]);
+    for (int k = 0; k < 4; ++k)
+      for (int a = 0; a < 3; ++a) gr[k][a].store_unaligned(o + tet_out_grad + 4 * (3 * k + a));
+    vt.store_unaligned(o + tet_out_volume);
+    B rate(0.0);
+    if (v4) {
+      for (int c = 0; c < 4; ++c) {
+        B vx, vy, vz;
+        load_transposed<Arch>(v4 + 4 * std::int64_t(n[4 * c]), v4 + 4 * std::int64_t(n[4 * c + 1]),
+                              v4 + 4 * std::int64_t(n[4 * c + 2]),
+                              v4 + 4 * std::int64_t(n[4 * c + 3]), vx, vy, vz);
+        rate += gr[c][0] * vx + gr[c][1] * vy + gr[c][2] * vz;
+      }
+    }
+    rate.store_unaligned(o + tet_out_rate);
+    (e.stiffening * xsimd::max(B(1.0), e.g)).store_unaligned(o + tet_out_state);
+    e.q.store_unaligned(o + tet_out_distortion);
+  }
+}
+
+template <class Arch>
+void tet_energy(const std::int32_t* nodes, const double* rest, const double* x4, double j_min,
+                double* out, std::int32_t begin, std::int32_t end) noexcept {
+  using B = xsimd::batch<double, Arch>;
+  for (std::int32_t b = begin; b < end; ++b) {
+    const double* R = rest + tet_rest_stride * std::int64_t(b);
+    double* o = out + tet_energy_stride * std::int64_t(b);
+    TetBatch<Arch> e;
+    e.load(nodes + 16 * std::int64_t(b), x4);
+    e.deviatoric(R, j_min);
+    (B::load_unaligned(R + tet_rest_volume) * e.W).store_unaligned(o);
+    const auto& d = e.d;
+    const B cx = d[1][1] * d[2][2] - d[1][2] * d[2][1];
+    const B cy = d[1][2] * d[2][0] - d[1][0] * d[2][2];
+    const B cz = d[1][0] * d[2][1] - d[1][1] * d[2][0];
+    ((d[0][0] * cx + d[0][1] * cy + d[0][2] * cz) / B(6.0)).store_unaligned(o + 4);
+  }
+}
+
+}  // namespace fsm::detail::simd
