@@ -133,7 +133,7 @@ TEST(ForceModel, SimdLinkKernelMatchesTheScalarLoop) {
 // Jacobi diagonal, and the product A p) give the scalar loops' results: three parts, the middle
 // one on the continuum law (so the force links come in two ranges and the middle links get zero
 // blocks), strained past the bilinear switch, both damping models and both Jacobian forms, one and
-// two threads.
+// two threads. The continuum part's edge springs go through the same apply kernel.
 TEST(ForceModel, SimdImplicitLinkKernelsMatchTheScalarLoops) {
   // Without AVX2+FMA (or without xsimd at build time) Options::simd runs the scalar loops, so
   // there is nothing to compare; the scalar loops have their own tests.

@@ -36,6 +36,7 @@
 #include <vector>
 
 #include "fsm/detail/parallel.hpp"
+#include "fsm/detail/simd_links.hpp"
 #include "fsm/detail/simd_tets.hpp"
 #include "fsm/sphere_model.hpp"
 #include "fsm/types.hpp"
@@ -195,12 +196,9 @@ class ContinuumTerm {
   /// its pressure), and without the elements that have the element tangent.
   [[nodiscard]] Scalar edge_stiffness(std::size_t e) const noexcept {
     Scalar k(0);
-    for (Index s = m_edge_part_start[e]; s < m_edge_part_start[e + 1]; ++s) {
-      const auto t = std::size_t(m_edge_part_element[std::size_t(s)]);
-      if (!m_element_tangent[t] && !m_removed[t])
-        k += (m_state_factor[t] + m_pressure_share[t] * std::abs(m_pressure[t]) / m_c10[t]) *
-             m_edge_part_k[std::size_t(s)];
-    }
+    for (Index s = m_edge_part_start[e]; s < m_edge_part_start[e + 1]; ++s)
+      k += m_edge_factor[std::size_t(m_edge_part_element[std::size_t(s)])] *
+           m_edge_part_k[std::size_t(s)];
     return k;
   }
 
@@ -214,6 +212,12 @@ class ContinuumTerm {
     for (std::size_t t = 0; t < nt; ++t) m_poor_shape[t] = m_quality[t] < q ? 1 : 0;
     // Which elements have it is decided at every add_forces() (poor shape or strain): room for all.
     m_element_tangent = m_poor_shape;
+    // (refresh() sizes the per-element state before it calls this.)
+    m_edge_factor.assign(nt, Scalar(0));
+    for (std::size_t t = 0; t < nt; ++t)
+      if (!m_element_tangent[t] && !m_removed[t])
+        m_edge_factor[t] =
+            m_state_factor[t] + m_pressure_share[t] * std::abs(m_pressure[t]) / m_c10[t];
     m_dense.clear();
     m_dense.reserve(nt);
     m_dense_rotation.assign(9 * nt, Scalar(0));
@@ -326,7 +330,7 @@ class ContinuumTerm {
     m_pressure.assign(nt, Scalar(0));
     set_element_tangent_quality(m_element_tangent_quality);
     m_grad.assign(12 * nt, Scalar(0));
-    m_edge_block.assign(4 * num_edges(), Scalar(0));
+    m_edge_block.assign(std::size_t(edge_block_size) * num_edges(), Scalar(0));
     m_node_coefficient.assign(std::size_t(n), Scalar(0));
     m_node_scratch.assign(std::size_t(n), Scalar(0));
     m_energy_scratch.assign(std::size_t(n), Scalar(0));  // energy() reuses it without growing
@@ -496,6 +500,9 @@ class ContinuumTerm {
               : (volume_now[id[0]] + volume_now[id[1]] + volume_now[id[2]] + volume_now[id[3]]) /
                     Scalar(4);
       m_pressure[t] = p;
+      m_edge_factor[t] = m_element_tangent[t] || m_removed[t]
+                             ? Scalar(0)
+                             : m_state_factor[t] + m_pressure_share[t] * std::abs(p) / m_c10[t];
       for (int k = 0; k < 4; ++k) {
         Scalar* q = f + 3 * std::ptrdiff_t(id[k]);
         q[0] -= p * g[3 * k];
@@ -577,7 +584,7 @@ class ContinuumTerm {
       const Vector3<Scalar> d = row(x, j) - row(x, i);
       const Scalar l = d.norm();
       const Vector3<Scalar> n = l > Scalar(0) ? Vector3<Scalar>(d / l) : Vector3<Scalar>::Zero();
-      Scalar* B = &m_edge_block[4 * e];
+      Scalar* B = &m_edge_block[std::size_t(edge_block_size) * e];
       B[0] = n[0];
       B[1] = n[1];
       B[2] = n[2];
@@ -622,9 +629,9 @@ class ContinuumTerm {
     // diagonal's 1-ring sums would need the ring; this per-element sum is what Jacobi needs.
     for (std::size_t t = 0; t < m_volume.size(); ++t) {
       const Index* id = &m_tets[4 * t];
+      Scalar c(0);
+      for (int a = 0; a < 4; ++a) c += m_node_coefficient[std::size_t(id[a])];
       for (int k = 0; k < 4; ++k) {
-        Scalar c(0);
-        for (int a = 0; a < 4; ++a) c += m_node_coefficient[std::size_t(id[a])];
         for (int d = 0; d < 3; ++d) {
           const Scalar gk = m_grad[12 * t + 3 * std::size_t(k) + std::size_t(d)] / Scalar(4);
           diagonal[3 * std::ptrdiff_t(id[k]) + d] += c * gk * gk;
@@ -647,7 +654,7 @@ class ContinuumTerm {
       o[5] += a * g[1] * g[2];
     };
     for (std::size_t e = 0; e < num_edges(); ++e) {
-      const Scalar* B = &m_edge_block[4 * e];
+      const Scalar* B = &m_edge_block[std::size_t(edge_block_size) * e];
       add(m_edges[2 * e], B, B[3]);
       add(m_edges[2 * e + 1], B, B[3]);
     }
@@ -673,10 +680,11 @@ class ContinuumTerm {
     }
   }
 
-  /// y += A_continuum p for the tangent prepared by prepare_implicit().
-  void apply_implicit(const Scalar* p, Scalar* y) noexcept {
+  /// y += A_continuum p for the tangent prepared by prepare_implicit(). `p4`: p padded to 4 per
+  /// node, for the SIMD kernels (optional).
+  void apply_implicit(const Scalar* p, Scalar* y, const Scalar* p4 = nullptr) noexcept {
     if (empty()) return;
-    apply_edges(0, num_edges(), p, y);
+    apply_edges(0, num_edges(), p, y, p4);
     apply_volumetric(p, y, [&](Index a) { return m_node_coefficient[std::size_t(a)]; });
     for (std::size_t k = 0; k < m_dense.size(); ++k) apply_element(k, p, y, m_dense_coefficient[k]);
   }
@@ -687,11 +695,11 @@ class ContinuumTerm {
   /// the nodal sums of the T buffers s, scaled by the nodes' coefficients; phase 3, share t: the
   /// volumetric second pass into y_t. The caller then adds the y_t. Same products as
   /// apply_implicit(), summed in another order.
-  void apply_implicit_phase1(const Scalar* p, Scalar* y_t, Scalar* s_t, int t,
-                             int T) const noexcept {
+  void apply_implicit_phase1(const Scalar* p, Scalar* y_t, Scalar* s_t, int t, int T,
+                             const Scalar* p4 = nullptr) const noexcept {
     if (empty()) return;
     const auto [e0, e1] = share(num_edges(), t, T);
-    apply_edges(e0, e1, p, y_t);
+    apply_edges(e0, e1, p, y_t, p4);
     const auto [t0, t1] = share(m_volume.size(), t, T);
     volumetric_spread(t0, t1, p, s_t);
     const auto [k0, k1] = share(m_dense.size(), t, T);
@@ -975,6 +983,7 @@ class ContinuumTerm {
   void remove_element(std::size_t e) noexcept {
     if (m_removed[e]) return;
     m_removed[e] = 1;
+    m_edge_factor[e] = Scalar(0);
     for (std::size_t c = 0; c < 4; ++c) {
       const auto a = std::size_t(m_tets[4 * e + c]);
       m_node_volume[a] = --m_node_count[a] > 0 ? m_node_volume[a] - m_volume[e] / 4 : Scalar(0);
@@ -1049,10 +1058,23 @@ class ContinuumTerm {
       }
   }
 
-  // The edge springs of [begin, end): y += B (p_j - p_i) on j, minus on i.
-  void apply_edges(std::size_t begin, std::size_t end, const Scalar* p, Scalar* y) const noexcept {
+  // The edge springs of [begin, end): y += B (p_j - p_i) on j, minus on i. On the links' SIMD
+  // apply kernel when `p4` (p padded to 4 per node) is given and the CPU has it: an edge's block
+  // is a link's with no isotropic part.
+  void apply_edges(std::size_t begin, std::size_t end, const Scalar* p, Scalar* y,
+                   const Scalar* p4) const noexcept {
+    if constexpr (std::is_same_v<Scalar, double>) {
+      if (p4 && m_simd) {
+        if (const auto kernel = simd::link_apply_kernel()) {
+          kernel(m_edges.data(), m_edge_block.data(), p4, y, std::int32_t(begin),
+                 std::int32_t(end));
+          return;
+        }
+      }
+    }
+    (void)p4;
     for (std::size_t e = begin; e < end; ++e) {
-      const Scalar* B = &m_edge_block[4 * e];
+      const Scalar* B = &m_edge_block[std::size_t(edge_block_size) * e];
       const std::ptrdiff_t a = 3 * std::ptrdiff_t(m_edges[2 * e]);
       const std::ptrdiff_t b = 3 * std::ptrdiff_t(m_edges[2 * e + 1]);
       const Scalar s = B[3] * (B[0] * (p[b] - p[a]) + B[1] * (p[b + 1] - p[a + 1]) +
@@ -1127,6 +1149,8 @@ class ContinuumTerm {
   // Per element at the last add_forces(): its current C10 over its small-strain C10 (bilinear
   // stiffening) times max(1, g(J)), and its mean nodal pressure.
   std::vector<Scalar> m_state_factor, m_pressure;
+  // Per element: its share's factor in edge_stiffness() (0 with the element tangent or removed).
+  std::vector<Scalar> m_edge_factor;
   std::vector<Scalar> m_quality;         // per element: shape_quality() at rest
   std::vector<Scalar> m_pressure_share;  // per element: l_rms^3 / (30 V)
   // The element tangents (set_element_tangent_quality(), add_forces()): which elements, their F
@@ -1138,8 +1162,10 @@ class ContinuumTerm {
   std::vector<Index> m_dense;
   std::vector<Scalar> m_dense_rotation, m_dense_coefficient;
   // Per-step scratch (sized by refresh).
-  std::vector<Scalar> m_grad;              // 12 per element: volume gradients at the step's x
-  std::vector<Scalar> m_edge_block;        // 4 per edge: n and (h^2 + h tau) k
+  std::vector<Scalar> m_grad;  // 12 per element: volume gradients at the step's x
+  // edge_block_size per edge: n, (h^2 + h tau) k and 0 (a link's block, simd_links.hpp).
+  static constexpr int edge_block_size = 5;
+  std::vector<Scalar> m_edge_block;
   std::vector<Scalar> m_node_coefficient;  // per node
   std::vector<Scalar> m_node_scratch;      // per node
   mutable std::vector<Scalar> m_energy_scratch;

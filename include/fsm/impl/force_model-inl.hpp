@@ -940,6 +940,8 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
     if (simd_ready(model.num_nodes())) simd_apply = detail::simd::link_apply_kernel();
     if (simd_apply) pad_states(pp, nullptr, model.num_nodes());  // p into m_x4
   }
+  const Scalar* p4 = nullptr;  // p padded, for the continuum's edges
+  if constexpr (std::is_same_v<Scalar, double>) p4 = simd_apply ? m_x4.data() : nullptr;
   auto kernel_range = [&](Index begin, Index end, Scalar* out) {
     if constexpr (std::is_same_v<Scalar, double>) {
       if (simd_apply) {
@@ -984,7 +986,7 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
       std::fill(s, s + n, Scalar(0));
       const auto [begin, end] = detail::share(nl, t, T);
       kernel(begin, end, buf);
-      m_continuum.apply_implicit_phase1(pp, buf, s, t, T);
+      m_continuum.apply_implicit_phase1(pp, buf, s, t, T, p4);
     };
     pool->run(phase1);
     auto phase2 = [&](int t, int) {
@@ -1006,7 +1008,7 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
   } else {
     detail::scatter_links(m_pool.get(), model.num_nodes(), model.num_links(), y.data(), m_scratch,
                           init, kernel);
-    m_continuum.apply_implicit(pp, y.data());
+    m_continuum.apply_implicit(pp, y.data(), p4);
   }
   for (Index k = 0; k < m_num_contacts; ++k) {
     const PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
