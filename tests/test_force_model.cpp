@@ -202,10 +202,10 @@ TEST(ForceModel, SimdImplicitLinkKernelsMatchTheScalarLoops) {
 }
 
 // The continuum law's element kernels (Options::simd, where the CPU has them) give the scalar
-// loops' forces, energy and element tangents: a lattice of 29 elements per part (so the last batch
-// of four is partly filled), linear and bilinear, squeezed, stretched past the switch and with one
-// element pushed through its base (J below j_min, inverted), random velocities, one element cut
-// out, one and two threads.
+// loops' forces, energy, element tangents, implicit right-hand side and diagonal, and product: a
+// lattice of 29 elements per part (so the last batch of four is partly filled), linear and
+// bilinear, squeezed, stretched past the switch and with one element pushed through its base (J
+// below j_min, inverted), random velocities, one element cut out, one and two threads.
 TEST(ForceModel, SimdElementKernelsMatchTheScalarLoops) {
   // Without AVX2+FMA (or without xsimd at build time) Options::simd runs the scalar loops, so
   // there is nothing to compare; the scalar loops have their own tests.
@@ -279,6 +279,13 @@ TEST(ForceModel, SimdElementKernelsMatchTheScalarLoops) {
         simd.prepare_implicit(model, h, JacobianForm::definite, blocks.data(), rb, db);
         EXPECT_LE((ra - rb).cwiseAbs().maxCoeff(), 1e-13 * ra.cwiseAbs().maxCoeff());
         EXPECT_LE((da - db).cwiseAbs().maxCoeff(), 1e-13 * da.cwiseAbs().maxCoeff());
+        // The product A p: the edge springs and the volumetric passes on the kernels.
+        Positions<double> p(n, 3), ya(n, 3), yb(n, 3);
+        for (Index i = 0; i < n; ++i)
+          for (int c = 0; c < 3; ++c) p(i, c) = g(rng);
+        scalar.apply_implicit(model, blocks.data(), p, ya);
+        simd.apply_implicit(model, blocks.data(), p, yb);
+        EXPECT_LE((ya - yb).cwiseAbs().maxCoeff(), 1e-13 * ya.cwiseAbs().maxCoeff());
       }
 }
 

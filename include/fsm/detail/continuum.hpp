@@ -329,7 +329,6 @@ class ContinuumTerm {
     m_state_factor.assign(nt, Scalar(1));
     m_pressure.assign(nt, Scalar(0));
     set_element_tangent_quality(m_element_tangent_quality);
-    m_grad.assign(12 * nt, Scalar(0));
     m_edge_block.assign(std::size_t(edge_block_size) * num_edges(), Scalar(0));
     m_node_coefficient.assign(std::size_t(n), Scalar(0));
     m_node_scratch.assign(std::size_t(n), Scalar(0));
@@ -418,7 +417,8 @@ class ContinuumTerm {
     const bool kernel = run_force_kernel(x, viscous ? v : nullptr);
     for (std::size_t t = 0; t < nt; ++t) {
       if (m_removed[t]) {  // zero gradients: the later passes add nothing for it
-        std::fill_n(&m_grad[12 * t], 12, Scalar(0));
+        Scalar* g = grad(t);
+        for (int k = 0; k < 12; ++k) g[4 * k] = Scalar(0);
         m_element_tangent[t] = 0;
         m_state_factor[t] = Scalar(1);
         continue;
@@ -430,8 +430,6 @@ class ContinuumTerm {
       if (kernel) {
         const Scalar* o = &m_batch_out[std::size_t(simd::tet_out_stride) * (t / 4) + t % 4];
         for (int k = 0; k < 9; ++k) H(k % 3, k / 3) = o[4 * k];
-        for (int k = 0; k < 12; ++k)
-          m_grad[12 * t + std::size_t(k)] = o[simd::tet_out_grad + 4 * k];
         vt = o[simd::tet_out_volume];
         dvt = o[simd::tet_out_rate];
         m_state_factor[t] = o[simd::tet_out_state];
@@ -441,9 +439,9 @@ class ContinuumTerm {
         Vector3<Scalar> g[4];
         load_edges(x, id, Ds);
         volume_gradient(Ds, g);
+        Scalar* gt = grad(t);
         for (int k = 0; k < 4; ++k)
-          for (int c = 0; c < 3; ++c)
-            m_grad[12 * t + 3 * std::size_t(k) + std::size_t(c)] = g[k][c];
+          for (int c = 0; c < 3; ++c) gt[4 * (3 * k + c)] = g[k][c];
         F = Ds * dm_inv(t);
         have_f = true;
         Matrix3<Scalar> P;
@@ -493,7 +491,7 @@ class ContinuumTerm {
     // Pass 2: f = -sum_T pbar_T grad v_T, pbar_T the mean of its nodal pressures.
     for (std::size_t t = 0; t < nt; ++t) {
       const Index* id = &m_tets[4 * t];
-      const Scalar* g = &m_grad[12 * t];
+      const Scalar* g = grad(t);
       const Scalar p =
           m_removed[t]
               ? Scalar(0)
@@ -505,9 +503,9 @@ class ContinuumTerm {
                              : m_state_factor[t] + m_pressure_share[t] * std::abs(p) / m_c10[t];
       for (int k = 0; k < 4; ++k) {
         Scalar* q = f + 3 * std::ptrdiff_t(id[k]);
-        q[0] -= p * g[3 * k];
-        q[1] -= p * g[3 * k + 1];
-        q[2] -= p * g[3 * k + 2];
+        q[0] -= p * g[4 * (3 * k)];
+        q[1] -= p * g[4 * (3 * k + 1)];
+        q[2] -= p * g[4 * (3 * k + 2)];
       }
     }
     if (!viscous) return;
@@ -633,7 +631,7 @@ class ContinuumTerm {
       for (int a = 0; a < 4; ++a) c += m_node_coefficient[std::size_t(id[a])];
       for (int k = 0; k < 4; ++k) {
         for (int d = 0; d < 3; ++d) {
-          const Scalar gk = m_grad[12 * t + 3 * std::size_t(k) + std::size_t(d)] / Scalar(4);
+          const Scalar gk = grad(t)[4 * (3 * k + d)] / Scalar(4);
           diagonal[3 * std::ptrdiff_t(id[k]) + d] += c * gk * gk;
         }
       }
@@ -644,25 +642,27 @@ class ContinuumTerm {
   /// node: xx, yy, zz, xy, xz, yz), with the volumetric part per element as in its diagonal.
   void add_diagonal_blocks(Scalar* out) const noexcept {
     if (empty()) return;
-    auto add = [&](Index i, const Scalar* g, Scalar a) {
+    auto add = [&](Index i, Scalar g0, Scalar g1, Scalar g2, Scalar a) {
       Scalar* o = out + 6 * std::ptrdiff_t(i);
-      o[0] += a * g[0] * g[0];
-      o[1] += a * g[1] * g[1];
-      o[2] += a * g[2] * g[2];
-      o[3] += a * g[0] * g[1];
-      o[4] += a * g[0] * g[2];
-      o[5] += a * g[1] * g[2];
+      o[0] += a * g0 * g0;
+      o[1] += a * g1 * g1;
+      o[2] += a * g2 * g2;
+      o[3] += a * g0 * g1;
+      o[4] += a * g0 * g2;
+      o[5] += a * g1 * g2;
     };
     for (std::size_t e = 0; e < num_edges(); ++e) {
       const Scalar* B = &m_edge_block[std::size_t(edge_block_size) * e];
-      add(m_edges[2 * e], B, B[3]);
-      add(m_edges[2 * e + 1], B, B[3]);
+      add(m_edges[2 * e], B[0], B[1], B[2], B[3]);
+      add(m_edges[2 * e + 1], B[0], B[1], B[2], B[3]);
     }
     for (std::size_t t = 0; t < m_volume.size(); ++t) {
       const Index* id = &m_tets[4 * t];
       Scalar c(0);
       for (int a = 0; a < 4; ++a) c += m_node_coefficient[std::size_t(id[a])];
-      for (int k = 0; k < 4; ++k) add(id[k], &m_grad[12 * t + 3 * std::size_t(k)], c / Scalar(16));
+      const Scalar* g = grad(t);
+      for (int k = 0; k < 4; ++k)
+        add(id[k], g[4 * (3 * k)], g[4 * (3 * k + 1)], g[4 * (3 * k + 2)], c / Scalar(16));
     }
     // Element tangents.
     for (std::size_t k = 0; k < m_dense.size(); ++k) {
@@ -685,7 +685,8 @@ class ContinuumTerm {
   void apply_implicit(const Scalar* p, Scalar* y, const Scalar* p4 = nullptr) noexcept {
     if (empty()) return;
     apply_edges(0, num_edges(), p, y, p4);
-    apply_volumetric(p, y, [&](Index a) { return m_node_coefficient[std::size_t(a)]; });
+    apply_volumetric(
+        p, y, [&](Index a) { return m_node_coefficient[std::size_t(a)]; }, p4);
     for (std::size_t k = 0; k < m_dense.size(); ++k) apply_element(k, p, y, m_dense_coefficient[k]);
   }
 
@@ -908,6 +909,14 @@ class ContinuumTerm {
  private:
   // The element kernels' inputs in batches of four (simd_tets.hpp), the last batch filled with
   // copies of the last element (its extra lanes are computed and never read), and their outputs.
+  // Element t's volume gradients at the step's x (corner k, axis c at [4 (3 k + c)]): kept in the
+  // element kernel's output (simd_tets.hpp) whichever loop computed them.
+  [[nodiscard]] Scalar* grad(std::size_t t) noexcept {
+    return &m_batch_out[std::size_t(simd::tet_out_stride) * (t / 4) + simd::tet_out_grad + t % 4];
+  }
+  [[nodiscard]] const Scalar* grad(std::size_t t) const noexcept {
+    return &m_batch_out[std::size_t(simd::tet_out_stride) * (t / 4) + simd::tet_out_grad + t % 4];
+  }
   void build_batches() {
     m_batch_nodes.clear();
     m_batch_rest.clear();
@@ -915,8 +924,10 @@ class ContinuumTerm {
     m_energy_out.clear();
     m_x4.clear();
     m_v4.clear();
+    m_y4.clear();
+    const std::size_t nt = m_volume.size(), nb = (nt + 3) / 4;
+    m_batch_out.assign(std::size_t(simd::tet_out_stride) * nb, Scalar(0));
     if constexpr (std::is_same_v<Scalar, double>) {
-      const std::size_t nt = m_volume.size(), nb = (nt + 3) / 4;
       if (nt == 0) return;
       m_batch_nodes.assign(16 * nb, 0);
       m_batch_rest.assign(std::size_t(simd::tet_rest_stride) * nb, 0.0);
@@ -931,10 +942,10 @@ class ContinuumTerm {
           R[simd::tet_rest_q_switch] = m_q_switch[t];
           R[simd::tet_rest_volume] = m_volume[t];
         }
-      m_batch_out.assign(std::size_t(simd::tet_out_stride) * nb, 0.0);
       m_energy_out.assign(std::size_t(simd::tet_energy_stride) * nb, 0.0);
       m_x4.assign(4 * std::size_t(m_num_nodes), 0.0);
       m_v4.assign(4 * std::size_t(m_num_nodes), 0.0);
+      m_y4.assign(4 * std::size_t(m_num_nodes), 0.0);
     }
   }
   // Copies n nodes' rows of 3 into rows of 4.
@@ -1091,11 +1102,11 @@ class ContinuumTerm {
                          Scalar* s) const noexcept {
     for (std::size_t t = begin; t < end; ++t) {
       const Index* id = &m_tets[4 * t];
-      const Scalar* g = &m_grad[12 * t];
+      const Scalar* g = grad(t);
       Scalar d(0);
       for (int k = 0; k < 4; ++k) {
         const Scalar* q = p + 3 * std::ptrdiff_t(id[k]);
-        d += g[3 * k] * q[0] + g[3 * k + 1] * q[1] + g[3 * k + 2] * q[2];
+        d += g[4 * (3 * k)] * q[0] + g[4 * (3 * k + 1)] * q[1] + g[4 * (3 * k + 2)] * q[2];
       }
       d *= Scalar(0.25);
       for (int k = 0; k < 4; ++k) s[id[k]] += d;
@@ -1106,22 +1117,40 @@ class ContinuumTerm {
                          Scalar* y) const noexcept {
     for (std::size_t t = begin; t < end; ++t) {
       const Index* id = &m_tets[4 * t];
-      const Scalar* g = &m_grad[12 * t];
+      const Scalar* g = grad(t);
       const Scalar c = Scalar(0.25) * (s[id[0]] + s[id[1]] + s[id[2]] + s[id[3]]);
       for (int k = 0; k < 4; ++k) {
         Scalar* q = y + 3 * std::ptrdiff_t(id[k]);
-        q[0] += c * g[3 * k];
-        q[1] += c * g[3 * k + 1];
-        q[2] += c * g[3 * k + 2];
+        q[0] += c * g[4 * (3 * k)];
+        q[1] += c * g[4 * (3 * k + 1)];
+        q[2] += c * g[4 * (3 * k + 2)];
       }
     }
   }
 
   // y += sum_a coefficient(a) (grad v_a . p) grad v_a, with the gradients of prepare_implicit().
+  // On the SIMD kernels when `p4` (p padded to 4 per node) is given and the CPU has them.
   template <typename Coefficient>
-  void apply_volumetric(const Scalar* p, Scalar* y, Coefficient coefficient) noexcept {
+  void apply_volumetric(const Scalar* p, Scalar* y, Coefficient coefficient,
+                        const Scalar* p4 = nullptr) noexcept {
     Scalar* s = m_node_scratch.data();
     std::fill(s, s + m_num_nodes, Scalar(0));
+    if constexpr (std::is_same_v<Scalar, double>) {
+      const auto spread = simd::tet_spread_kernel();
+      const auto gather = simd::tet_gather_kernel();
+      if (p4 && simd_active() && spread && gather) {
+        const auto nb = std::int32_t(m_batch_nodes.size() / 16);
+        const auto nt = std::int32_t(m_volume.size());
+        spread(m_batch_nodes.data(), m_batch_out.data(), p4, s, 0, nb, nt);
+        for (Index a = 0; a < m_num_nodes; ++a) s[a] *= coefficient(a);
+        std::fill(m_y4.begin(), m_y4.end(), 0.0);
+        gather(m_batch_nodes.data(), m_batch_out.data(), s, m_y4.data(), 0, nb, nt);
+        for (Index a = 0; a < m_num_nodes; ++a)
+          for (int c = 0; c < 3; ++c) y[3 * std::ptrdiff_t(a) + c] += m_y4[4 * std::size_t(a) + c];
+        return;
+      }
+    }
+    (void)p4;
     volumetric_spread(0, m_volume.size(), p, s);
     for (Index a = 0; a < m_num_nodes; ++a) s[a] *= coefficient(a);
     volumetric_gather(0, m_volume.size(), s, y);
@@ -1162,7 +1191,6 @@ class ContinuumTerm {
   std::vector<Index> m_dense;
   std::vector<Scalar> m_dense_rotation, m_dense_coefficient;
   // Per-step scratch (sized by refresh).
-  std::vector<Scalar> m_grad;  // 12 per element: volume gradients at the step's x
   // edge_block_size per edge: n, (h^2 + h tau) k and 0 (a link's block, simd_links.hpp).
   static constexpr int edge_block_size = 5;
   std::vector<Scalar> m_edge_block;
@@ -1172,7 +1200,7 @@ class ContinuumTerm {
   // The element kernels (build_batches()): inputs, outputs, and the states padded to 4 per node.
   bool m_simd{true};
   std::vector<std::int32_t> m_batch_nodes;
-  std::vector<Scalar> m_batch_rest, m_batch_out, m_v4;
+  std::vector<Scalar> m_batch_rest, m_batch_out, m_v4, m_y4;
   mutable std::vector<Scalar> m_x4, m_energy_out;
 };
 

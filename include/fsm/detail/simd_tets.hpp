@@ -38,8 +38,20 @@ constexpr int tet_energy_stride = 8;
 using TetEnergyKernel = void (*)(const std::int32_t* nodes, const double* rest, const double* x4,
                                  double j_min, double* out, std::int32_t begin, std::int32_t end);
 
+/// The volumetric product's two passes over batches [begin, end), of which only the first `nt`
+/// elements count, with the volume gradients of the force kernel's output `out`:
+/// spread: s[a] += (grad v_T . p) / 4 at each corner a (p: 4 doubles per node);
+/// gather: y4[a] += c_T grad_a v_T with c_T the mean of s over the corners (y4: 4 per node, the
+/// fourth left alone).
+using TetSpreadKernel = void (*)(const std::int32_t* nodes, const double* out, const double* p4,
+                                 double* s, std::int32_t begin, std::int32_t end, std::int32_t nt);
+using TetGatherKernel = void (*)(const std::int32_t* nodes, const double* out, const double* s,
+                                 double* y4, std::int32_t begin, std::int32_t end, std::int32_t nt);
+
 /// The kernels for this CPU, or nullptr (no SIMD build, or a CPU without AVX2 and FMA).
 TetForceKernel tet_force_kernel() noexcept;
 TetEnergyKernel tet_energy_kernel() noexcept;
+TetSpreadKernel tet_spread_kernel() noexcept;
+TetGatherKernel tet_gather_kernel() noexcept;
 
 }  // namespace fsm::detail::simd

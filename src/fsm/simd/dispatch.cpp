@@ -12,6 +12,8 @@ LinkPrepareKernel avx2_link_prepare_kernel(bool bilinear, bool along_link) noexc
 LinkApplyKernel avx2_link_apply_kernel() noexcept;
 TetForceKernel avx2_tet_force_kernel() noexcept;
 TetEnergyKernel avx2_tet_energy_kernel() noexcept;
+TetSpreadKernel avx2_tet_spread_kernel() noexcept;
+TetGatherKernel avx2_tet_gather_kernel() noexcept;
 
 namespace {
 bool has_avx2_fma() noexcept {
@@ -40,6 +42,14 @@ TetEnergyKernel tet_energy_kernel() noexcept {
   return has_avx2_fma() ? avx2_tet_energy_kernel() : nullptr;
 }
 
+TetSpreadKernel tet_spread_kernel() noexcept {
+  return has_avx2_fma() ? avx2_tet_spread_kernel() : nullptr;
+}
+
+TetGatherKernel tet_gather_kernel() noexcept {
+  return has_avx2_fma() ? avx2_tet_gather_kernel() : nullptr;
+}
+
 const char* instruction_set() noexcept {
   return has_avx2_fma() ? "avx2+fma" : "none";
 }
@@ -57,6 +67,12 @@ TetForceKernel tet_force_kernel() noexcept {
   return nullptr;
 }
 TetEnergyKernel tet_energy_kernel() noexcept {
+  return nullptr;
+}
+TetSpreadKernel tet_spread_kernel() noexcept {
+  return nullptr;
+}
+TetGatherKernel tet_gather_kernel() noexcept {
   return nullptr;
 }
 const char* instruction_set() noexcept {

@@ -10,23 +10,32 @@
 
 namespace fsm::detail::simd {
 
-// Four rows of four doubles into the batches of their columns (the full 4 x 4 transpose).
+// The 4 x 4 transpose: rows a, b, c, d into columns X, Y, Z, W (and back: it is its own inverse).
 template <class Arch>
-inline void load_transposed4(const double* r0, const double* r1, const double* r2, const double* r3,
-                             xsimd::batch<double, Arch>& X, xsimd::batch<double, Arch>& Y,
-                             xsimd::batch<double, Arch>& Z,
-                             xsimd::batch<double, Arch>& W) noexcept {
+inline void transpose4(const xsimd::batch<double, Arch>& a, const xsimd::batch<double, Arch>& b,
+                       const xsimd::batch<double, Arch>& c, const xsimd::batch<double, Arch>& d,
+                       xsimd::batch<double, Arch>& X, xsimd::batch<double, Arch>& Y,
+                       xsimd::batch<double, Arch>& Z, xsimd::batch<double, Arch>& W) noexcept {
   using B = xsimd::batch<double, Arch>;
   using Swap = xsimd::batch_constant<xsimd::batch<std::uint64_t, Arch>, 2, 3, 0, 1>;
   using High = xsimd::batch_bool_constant<B, false, false, true, true>;
-  const B a = B::load_unaligned(r0), b = B::load_unaligned(r1), c = B::load_unaligned(r2),
-          d = B::load_unaligned(r3);
   const B t0 = xsimd::zip_lo(a, b), t1 = xsimd::zip_hi(a, b);
   const B t2 = xsimd::zip_lo(c, d), t3 = xsimd::zip_hi(c, d);
   X = xsimd::select(High{}, xsimd::swizzle(t2, Swap{}), t0);
   Y = xsimd::select(High{}, xsimd::swizzle(t3, Swap{}), t1);
   Z = xsimd::select(High{}, t2, xsimd::swizzle(t0, Swap{}));
   W = xsimd::select(High{}, t3, xsimd::swizzle(t1, Swap{}));
+}
+
+// Four rows of four doubles into the batches of their columns.
+template <class Arch>
+inline void load_transposed4(const double* r0, const double* r1, const double* r2, const double* r3,
+                             xsimd::batch<double, Arch>& X, xsimd::batch<double, Arch>& Y,
+                             xsimd::batch<double, Arch>& Z,
+                             xsimd::batch<double, Arch>& W) noexcept {
+  using B = xsimd::batch<double, Arch>;
+  transpose4<Arch>(B::load_unaligned(r0), B::load_unaligned(r1), B::load_unaligned(r2),
+                   B::load_unaligned(r3), X, Y, Z, W);
 }
 
 // Four nodes' (x, y, z, _) rows into the batches X, Y, Z (4 lanes: one per node).

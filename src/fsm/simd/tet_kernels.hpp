@@ -187,4 +187,53 @@ void tet_energy(const std::int32_t* nodes, const double* rest, const double* x4,
   }
 }
 
+template <class Arch>
+void tet_spread(const std::int32_t* nodes, const double* out, const double* p4, double* s,
+                std::int32_t begin, std::int32_t end, std::int32_t nt) noexcept {
+  using B = xsimd::batch<double, Arch>;
+  alignas(32) double dd[4];
+  for (std::int32_t b = begin; b < end; ++b) {
+    const std::int32_t* n = nodes + 16 * std::int64_t(b);
+    const double* g = out + tet_out_stride * std::int64_t(b) + tet_out_grad;
+    B d(0.0);
+    for (int c = 0; c < 4; ++c) {
+      B px, py, pz;
+      load_transposed<Arch>(p4 + 4 * std::int64_t(n[4 * c]), p4 + 4 * std::int64_t(n[4 * c + 1]),
+                            p4 + 4 * std::int64_t(n[4 * c + 2]),
+                            p4 + 4 * std::int64_t(n[4 * c + 3]), px, py, pz);
+      d += B::load_unaligned(g + 4 * (3 * c)) * px + B::load_unaligned(g + 4 * (3 * c + 1)) * py +
+           B::load_unaligned(g + 4 * (3 * c + 2)) * pz;
+    }
+    (d * B(0.25)).store_aligned(dd);
+    const int lanes = nt - 4 * b < 4 ? int(nt - 4 * b) : 4;
+    for (int l = 0; l < lanes; ++l)
+      for (int c = 0; c < 4; ++c) s[n[4 * c + l]] += dd[l];
+  }
+}
+
+template <class Arch>
+void tet_gather(const std::int32_t* nodes, const double* out, const double* s, double* y4,
+                std::int32_t begin, std::int32_t end, std::int32_t nt) noexcept {
+  using B = xsimd::batch<double, Arch>;
+  for (std::int32_t b = begin; b < end; ++b) {
+    const std::int32_t* n = nodes + 16 * std::int64_t(b);
+    const double* g = out + tet_out_stride * std::int64_t(b) + tet_out_grad;
+    const int lanes = nt - 4 * b < 4 ? int(nt - 4 * b) : 4;
+    double c[4];
+    for (int l = 0; l < 4; ++l)
+      c[l] = l < lanes ? 0.25 * (s[n[l]] + s[n[4 + l]] + s[n[8 + l]] + s[n[12 + l]]) : 0.0;
+    const B C{c[0], c[1], c[2], c[3]};  // from registers: a load of four scalar stores stalls
+    for (int k = 0; k < 4; ++k) {
+      B r[4];
+      transpose4<Arch>(C * B::load_unaligned(g + 4 * (3 * k)),
+                       C * B::load_unaligned(g + 4 * (3 * k + 1)),
+                       C * B::load_unaligned(g + 4 * (3 * k + 2)), B(0.0), r[0], r[1], r[2], r[3]);
+      for (int l = 0; l < lanes; ++l) {
+        double* y = y4 + 4 * std::int64_t(n[4 * k + l]);
+        (B::load_unaligned(y) + r[l]).store_unaligned(y);
+      }
+    }
+  }
+}
+
 }  // namespace fsm::detail::simd

@@ -14,4 +14,12 @@ TetEnergyKernel avx2_tet_energy_kernel() noexcept {
   return &tet_energy<Avx2>;
 }
 
+TetSpreadKernel avx2_tet_spread_kernel() noexcept {
+  return &tet_spread<Avx2>;
+}
+
+TetGatherKernel avx2_tet_gather_kernel() noexcept {
+  return &tet_gather<Avx2>;
+}
+
 }  // namespace fsm::detail::simd
