@@ -618,10 +618,20 @@ class ContinuumTerm {
                         : Scalar(0);
     }
     // rhs -= h^2 H_vol v: the stiffness part of the coefficient.
-    apply_volumetric(v, rhs, [&](Index a) {
-      const Scalar V = m_node_volume[std::size_t(a)];
-      return V > Scalar(0) ? -h2 * m_node_bulk[std::size_t(a)] / V : Scalar(0);
-    });
+    const Scalar* v4 = nullptr;
+    if constexpr (std::is_same_v<Scalar, double>) {
+      if (simd_active()) {
+        pad(v, m_num_nodes, m_v4.data());
+        v4 = m_v4.data();
+      }
+    }
+    apply_volumetric(
+        v, rhs,
+        [&](Index a) {
+          const Scalar V = m_node_volume[std::size_t(a)];
+          return V > Scalar(0) ? -h2 * m_node_bulk[std::size_t(a)] / V : Scalar(0);
+        },
+        v4);
     // diag(H_vol)_i = sum_a c_a (d v_a / d x_i)^2, d v_a / d x_i = sum_{T at a, i} g_{T,i} / 4.
     // Computed per element and node pair (a, i) of the element: an upper bound of the exact
     // diagonal's 1-ring sums would need the ring; this per-element sum is what Jacobi needs.
