@@ -413,7 +413,8 @@ class ContinuumTerm {
     const std::size_t nt = m_volume.size();
     m_dense.clear();
     // Pass 1: deviatoric forces; current volumes and their rates scattered to the nodes. The
-    // per-element work on the SIMD kernel where there is one (into m_batch_out), else here.
+    // per-element work on the SIMD kernel where there is one (into m_batch_out and m_batch_grad),
+    // else here.
     const bool kernel = run_force_kernel(x, viscous ? v : nullptr);
     for (std::size_t t = 0; t < nt; ++t) {
       if (m_removed[t]) {  // zero gradients: the later passes add nothing for it
@@ -920,12 +921,12 @@ class ContinuumTerm {
   // The element kernels' inputs in batches of four (simd_tets.hpp), the last batch filled with
   // copies of the last element (its extra lanes are computed and never read), and their outputs.
   // Element t's volume gradients at the step's x (corner k, axis c at [4 (3 k + c)]): kept in the
-  // element kernel's output (simd_tets.hpp) whichever loop computed them.
+  // element kernel's layout (simd_tets.hpp) whichever loop computed them.
   [[nodiscard]] Scalar* grad(std::size_t t) noexcept {
-    return &m_batch_out[std::size_t(simd::tet_out_stride) * (t / 4) + simd::tet_out_grad + t % 4];
+    return &m_batch_grad[std::size_t(simd::tet_grad_stride) * (t / 4) + t % 4];
   }
   [[nodiscard]] const Scalar* grad(std::size_t t) const noexcept {
-    return &m_batch_out[std::size_t(simd::tet_out_stride) * (t / 4) + simd::tet_out_grad + t % 4];
+    return &m_batch_grad[std::size_t(simd::tet_grad_stride) * (t / 4) + t % 4];
   }
   void build_batches() {
     m_batch_nodes.clear();
@@ -936,7 +937,7 @@ class ContinuumTerm {
     m_v4.clear();
     m_y4.clear();
     const std::size_t nt = m_volume.size(), nb = (nt + 3) / 4;
-    m_batch_out.assign(std::size_t(simd::tet_out_stride) * nb, Scalar(0));
+    m_batch_grad.assign(std::size_t(simd::tet_grad_stride) * nb, Scalar(0));
     if constexpr (std::is_same_v<Scalar, double>) {
       if (nt == 0) return;
       m_batch_nodes.assign(16 * nb, 0);
@@ -952,6 +953,7 @@ class ContinuumTerm {
           R[simd::tet_rest_q_switch] = m_q_switch[t];
           R[simd::tet_rest_volume] = m_volume[t];
         }
+      m_batch_out.assign(std::size_t(simd::tet_out_stride) * nb, 0.0);
       m_energy_out.assign(std::size_t(simd::tet_energy_stride) * nb, 0.0);
       m_x4.assign(4 * std::size_t(m_num_nodes), 0.0);
       m_v4.assign(4 * std::size_t(m_num_nodes), 0.0);
@@ -970,8 +972,8 @@ class ContinuumTerm {
       pad(x, m_num_nodes, m_x4.data());
       if (v) pad(v, m_num_nodes, m_v4.data());
       simd::tet_force_kernel()(m_batch_nodes.data(), m_batch_rest.data(), m_x4.data(),
-                               v ? m_v4.data() : nullptr, j_min, m_batch_out.data(), 0,
-                               std::int32_t(m_batch_nodes.size() / 16));
+                               v ? m_v4.data() : nullptr, j_min, m_batch_out.data(),
+                               m_batch_grad.data(), 0, std::int32_t(m_batch_nodes.size() / 16));
       return true;
     }
     (void)x, (void)v;
@@ -1151,10 +1153,10 @@ class ContinuumTerm {
       if (p4 && simd_active() && spread && gather) {
         const auto nb = std::int32_t(m_batch_nodes.size() / 16);
         const auto nt = std::int32_t(m_volume.size());
-        spread(m_batch_nodes.data(), m_batch_out.data(), p4, s, 0, nb, nt);
+        spread(m_batch_nodes.data(), m_batch_grad.data(), p4, s, 0, nb, nt);
         for (Index a = 0; a < m_num_nodes; ++a) s[a] *= coefficient(a);
         std::fill(m_y4.begin(), m_y4.end(), 0.0);
-        gather(m_batch_nodes.data(), m_batch_out.data(), s, m_y4.data(), 0, nb, nt);
+        gather(m_batch_nodes.data(), m_batch_grad.data(), s, m_y4.data(), 0, nb, nt);
         for (Index a = 0; a < m_num_nodes; ++a)
           for (int c = 0; c < 3; ++c) y[3 * std::ptrdiff_t(a) + c] += m_y4[4 * std::size_t(a) + c];
         return;
@@ -1210,7 +1212,7 @@ class ContinuumTerm {
   // The element kernels (build_batches()): inputs, outputs, and the states padded to 4 per node.
   bool m_simd{true};
   std::vector<std::int32_t> m_batch_nodes;
-  std::vector<Scalar> m_batch_rest, m_batch_out, m_v4, m_y4;
+  std::vector<Scalar> m_batch_rest, m_batch_out, m_batch_grad, m_v4, m_y4;
   mutable std::vector<Scalar> m_x4, m_energy_out;
 };
 

@@ -103,12 +103,14 @@ struct TetBatch {
 
 template <class Arch>
 void tet_forces(const std::int32_t* nodes, const double* rest, const double* x4, const double* v4,
-                double j_min, double* out, std::int32_t begin, std::int32_t end) noexcept {
+                double j_min, double* out, double* grad, std::int32_t begin,
+                std::int32_t end) noexcept {
   using B = xsimd::batch<double, Arch>;
   for (std::int32_t b = begin; b < end; ++b) {
     const std::int32_t* n = nodes + 16 * std::int64_t(b);
     const double* R = rest + tet_rest_stride * std::int64_t(b);
     double* o = out + tet_out_stride * std::int64_t(b);
+    double* og = grad + tet_grad_stride * std::int64_t(b);
     TetBatch<Arch> e;
     e.load(n, x4);
     e.deviatoric(R, j_min);
@@ -150,7 +152,7 @@ void tet_forces(const std::int32_t* nodes, const double* rest, const double* x4,
       for (int a = 0; a < 3; ++a) gr[k][a] = gr[k][a] / B(6.0);
     for (int a = 0; a < 3; ++a) gr[0][a] = B(0.0) - (gr[1][a] + gr[2][a] + gr[3][a]);
     for (int k = 0; k < 4; ++k)
-      for (int a = 0; a < 3; ++a) gr[k][a].store_unaligned(o + tet_out_grad + 4 * (3 * k + a));
+      for (int a = 0; a < 3; ++a) gr[k][a].store_unaligned(og + 4 * (3 * k + a));
     vt.store_unaligned(o + tet_out_volume);
     B rate(0.0);
     if (v4) {
@@ -188,13 +190,13 @@ void tet_energy(const std::int32_t* nodes, const double* rest, const double* x4,
 }
 
 template <class Arch>
-void tet_spread(const std::int32_t* nodes, const double* out, const double* p4, double* s,
+void tet_spread(const std::int32_t* nodes, const double* grad, const double* p4, double* s,
                 std::int32_t begin, std::int32_t end, std::int32_t nt) noexcept {
   using B = xsimd::batch<double, Arch>;
   alignas(32) double dd[4];
   for (std::int32_t b = begin; b < end; ++b) {
     const std::int32_t* n = nodes + 16 * std::int64_t(b);
-    const double* g = out + tet_out_stride * std::int64_t(b) + tet_out_grad;
+    const double* g = grad + tet_grad_stride * std::int64_t(b);
     B d(0.0);
     for (int c = 0; c < 4; ++c) {
       B px, py, pz;
@@ -212,12 +214,12 @@ void tet_spread(const std::int32_t* nodes, const double* out, const double* p4, 
 }
 
 template <class Arch>
-void tet_gather(const std::int32_t* nodes, const double* out, const double* s, double* y4,
+void tet_gather(const std::int32_t* nodes, const double* grad, const double* s, double* y4,
                 std::int32_t begin, std::int32_t end, std::int32_t nt) noexcept {
   using B = xsimd::batch<double, Arch>;
   for (std::int32_t b = begin; b < end; ++b) {
     const std::int32_t* n = nodes + 16 * std::int64_t(b);
-    const double* g = out + tet_out_stride * std::int64_t(b) + tet_out_grad;
+    const double* g = grad + tet_grad_stride * std::int64_t(b);
     const int lanes = nt - 4 * b < 4 ? int(nt - 4 * b) : 4;
     double c[4];
     for (int l = 0; l < 4; ++l)
