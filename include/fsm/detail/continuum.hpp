@@ -712,8 +712,20 @@ class ContinuumTerm {
     if (empty()) return;
     const auto [e0, e1] = share(num_edges(), t, T);
     apply_edges(e0, e1, p, y_t, p4);
-    const auto [t0, t1] = share(m_volume.size(), t, T);
-    volumetric_spread(t0, t1, p, s_t);
+    bool done = false;
+    if constexpr (std::is_same_v<Scalar, double>) {
+      const auto spread = simd::tet_spread_kernel();
+      if (p4 && simd_active() && spread) {
+        const auto [b0, b1] = share(m_batch_nodes.size() / 16, t, T);
+        spread(m_batch_nodes.data(), m_batch_grad.data(), p4, s_t, std::int32_t(b0),
+               std::int32_t(b1), std::int32_t(m_volume.size()));
+        done = true;
+      }
+    }
+    if (!done) {
+      const auto [t0, t1] = share(m_volume.size(), t, T);
+      volumetric_spread(t0, t1, p, s_t);
+    }
     const auto [k0, k1] = share(m_dense.size(), t, T);
     for (std::size_t k = k0; k < k1; ++k) apply_element(k, p, y_t, m_dense_coefficient[k]);
   }
@@ -727,9 +739,19 @@ class ContinuumTerm {
       m_node_scratch[std::size_t(a)] = sum * m_node_coefficient[std::size_t(a)];
     }
   }
-  /// Phase 3 of apply_implicit_phase1().
-  void apply_implicit_phase3(Scalar* y_t, int t, int T) const noexcept {
+  /// Phase 3 of apply_implicit_phase1() (`p4` as there: the kernels run if it is given).
+  void apply_implicit_phase3(Scalar* y_t, int t, int T, const Scalar* p4 = nullptr) const noexcept {
     if (empty()) return;
+    if constexpr (std::is_same_v<Scalar, double>) {
+      const auto gather = simd::tet_gather_kernel();
+      if (p4 && simd_active() && gather) {
+        const auto [b0, b1] = share(m_batch_nodes.size() / 16, t, T);
+        gather(m_batch_nodes.data(), m_batch_grad.data(), m_node_scratch.data(), y_t, 3,
+               std::int32_t(b0), std::int32_t(b1), std::int32_t(m_volume.size()));
+        return;
+      }
+    }
+    (void)p4;
     const auto [t0, t1] = share(m_volume.size(), t, T);
     volumetric_gather(t0, t1, m_node_scratch.data(), y_t);
   }
@@ -918,8 +940,6 @@ class ContinuumTerm {
   }
 
  private:
-  // The element kernels' inputs in batches of four (simd_tets.hpp), the last batch filled with
-  // copies of the last element (its extra lanes are computed and never read), and their outputs.
   // Element t's volume gradients at the step's x (corner k, axis c at [4 (3 k + c)]): kept in the
   // element kernel's layout (simd_tets.hpp) whichever loop computed them.
   [[nodiscard]] Scalar* grad(std::size_t t) noexcept {
@@ -928,6 +948,9 @@ class ContinuumTerm {
   [[nodiscard]] const Scalar* grad(std::size_t t) const noexcept {
     return &m_batch_grad[std::size_t(simd::tet_grad_stride) * (t / 4) + t % 4];
   }
+  // The element kernels' inputs in batches of four (simd_tets.hpp), the last batch filled with
+  // copies of the last element (its extra lanes are computed and never read), their outputs, and
+  // the states padded to four per node.
   void build_batches() {
     m_batch_nodes.clear();
     m_batch_rest.clear();
@@ -1156,7 +1179,7 @@ class ContinuumTerm {
         spread(m_batch_nodes.data(), m_batch_grad.data(), p4, s, 0, nb, nt);
         for (Index a = 0; a < m_num_nodes; ++a) s[a] *= coefficient(a);
         std::fill(m_y4.begin(), m_y4.end(), 0.0);
-        gather(m_batch_nodes.data(), m_batch_grad.data(), s, m_y4.data(), 0, nb, nt);
+        gather(m_batch_nodes.data(), m_batch_grad.data(), s, m_y4.data(), 4, 0, nb, nt);
         for (Index a = 0; a < m_num_nodes; ++a)
           for (int c = 0; c < 3; ++c) y[3 * std::ptrdiff_t(a) + c] += m_y4[4 * std::size_t(a) + c];
         return;

@@ -45,12 +45,13 @@ using TetEnergyKernel = void (*)(const std::int32_t* nodes, const double* rest, 
 /// The volumetric product's two passes over batches [begin, end), of which only the first `nt`
 /// elements count, with the volume gradients of the force kernel's output `grad`:
 /// spread: s[a] += (grad v_T . p) / 4 at each corner a (p: 4 doubles per node);
-/// gather: y4[a] += c_T grad_a v_T with c_T the mean of s over the corners (y4: 4 per node, the
-/// fourth left alone).
+/// gather: y[a] += c_T grad_a v_T with c_T the mean of s over the corners (y: `stride` doubles
+/// per node, 4 (one 32-byte add per corner, the fourth unchanged) or 3).
 using TetSpreadKernel = void (*)(const std::int32_t* nodes, const double* grad, const double* p4,
                                  double* s, std::int32_t begin, std::int32_t end, std::int32_t nt);
 using TetGatherKernel = void (*)(const std::int32_t* nodes, const double* grad, const double* s,
-                                 double* y4, std::int32_t begin, std::int32_t end, std::int32_t nt);
+                                 double* y, int stride, std::int32_t begin, std::int32_t end,
+                                 std::int32_t nt);
 
 /// The kernels for this CPU, or nullptr (no SIMD build, or a CPU without AVX2 and FMA).
 TetForceKernel tet_force_kernel() noexcept;

@@ -996,7 +996,7 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
     };
     pool->run(phase2);
     auto phase3 = [&](int t, int) {
-      if (t < T) m_continuum.apply_implicit_phase3(m_scratch[std::size_t(t)].data(), t, T);
+      if (t < T) m_continuum.apply_implicit_phase3(m_scratch[std::size_t(t)].data(), t, T, p4);
     };
     pool->run(phase3);
     auto sum = [&](int t, int) {

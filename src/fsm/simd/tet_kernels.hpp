@@ -214,8 +214,8 @@ void tet_spread(const std::int32_t* nodes, const double* grad, const double* p4,
 }
 
 template <class Arch>
-void tet_gather(const std::int32_t* nodes, const double* grad, const double* s, double* y4,
-                std::int32_t begin, std::int32_t end, std::int32_t nt) noexcept {
+void tet_gather(const std::int32_t* nodes, const double* grad, const double* s, double* y,
+                int stride, std::int32_t begin, std::int32_t end, std::int32_t nt) noexcept {
   using B = xsimd::batch<double, Arch>;
   for (std::int32_t b = begin; b < end; ++b) {
     const std::int32_t* n = nodes + 16 * std::int64_t(b);
@@ -230,9 +230,20 @@ void tet_gather(const std::int32_t* nodes, const double* grad, const double* s, 
       transpose4<Arch>(C * B::load_unaligned(g + 4 * (3 * k)),
                        C * B::load_unaligned(g + 4 * (3 * k + 1)),
                        C * B::load_unaligned(g + 4 * (3 * k + 2)), B(0.0), r[0], r[1], r[2], r[3]);
-      for (int l = 0; l < lanes; ++l) {
-        double* y = y4 + 4 * std::int64_t(n[4 * k + l]);
-        (B::load_unaligned(y) + r[l]).store_unaligned(y);
+      if (stride == 4) {
+        for (int l = 0; l < lanes; ++l) {
+          double* q = y + 4 * std::int64_t(n[4 * k + l]);
+          (B::load_unaligned(q) + r[l]).store_unaligned(q);
+        }
+      } else {
+        alignas(32) double row[4];
+        for (int l = 0; l < lanes; ++l) {
+          double* q = y + std::int64_t(stride) * n[4 * k + l];
+          r[l].store_aligned(row);
+          q[0] += row[0];
+          q[1] += row[1];
+          q[2] += row[2];
+        }
       }
     }
   }
