@@ -5,7 +5,9 @@
 // inverted element keeps finite forces that push it back; and a block squeezed between two
 // frictionless instruments carries E A strain at every resolution (contact and law together).
 
+#include <map>
 #include <random>
+#include <string>
 
 #include "common.hpp"
 #include "fsm/collision/contact.hpp"
@@ -506,6 +508,173 @@ TEST(Continuum, StrainedElementsGetTheElementTangent) {
   EXPECT_EQ(f.continuum_element_tangents(), m.num_tetrahedra());
   f.evaluate(m, affine(m, isochoric(1.3)), zero, F);
   EXPECT_EQ(f.continuum_element_tangents(), 0);
+}
+
+// --- Smoothed strains (StrainSmoothing, docs/physics.md section 11) ---
+
+ForceModel<double> smoothed(const SphereModel<double>& m, StrainSmoothing s, double share) {
+  ForceModel<double>::Options o;
+  o.gravity.setZero();
+  o.strain_smoothing = s;
+  o.smoothing_element_share = share;
+  return ForceModel<double>(m, o);
+}
+
+// The smoothed law's energy written independently of the library: each element's F; per face,
+// edge or node of the mesh the rest-volume average of the F of the intact elements there, on a
+// domain of 1/4, 1/6 or 1/4 of their volume; the element's own F for the remaining share; the
+// nodal volumetric part as in the element law.
+double textbook_smoothed_energy(const SphereModel<double>& m, const Positions<double>& x,
+                                StrainSmoothing s, double share) {
+  const Material<double>& mat = m.region(0).material;
+  const double mu = mat.youngs_modulus / (2 * (1 + mat.poisson_ratio));
+  const double K = mat.youngs_modulus / (3 * (1 - 2 * mat.poisson_ratio));
+  auto W = [&](const M3& F) {
+    return mu / 2 * ((F.transpose() * F).trace() * std::pow(F.determinant(), -2.0 / 3.0) - 3);
+  };
+  const auto T = m.tetrahedra();
+  const auto X = m.rest_positions();
+  const auto intact = m.tetrahedron_intact();
+  std::map<std::vector<Index>, std::pair<M3, double>> domains;  // key -> (sum V F, sum V)
+  std::map<Index, std::pair<double, double>> nodal;             // node -> (v, V)
+  double e = 0;
+  for (Index t = 0; t < m.num_tetrahedra(); ++t) {
+    if (!intact[t]) continue;
+    M3 Dm, Ds;
+    for (int k = 0; k < 3; ++k) {
+      Dm.col(k) = (X.row(T(t, k + 1)) - X.row(T(t, 0))).transpose();
+      Ds.col(k) = (x.row(T(t, k + 1)) - x.row(T(t, 0))).transpose();
+    }
+    const double V = Dm.determinant() / 6;
+    const M3 F = Ds * Dm.inverse();
+    e += share * V * W(F);
+    std::vector<std::vector<Index>> keys;
+    const Index id[4] = {T(t, 0), T(t, 1), T(t, 2), T(t, 3)};
+    for (int a = 0; a < 4; ++a) {
+      nodal[id[a]].first += Ds.determinant() / 24;
+      nodal[id[a]].second += V / 4;
+      if (s == StrainSmoothing::node) keys.push_back({id[a]});
+      for (int b = a + 1; b < 4; ++b) {
+        if (s == StrainSmoothing::edge) keys.push_back({id[a], id[b]});
+        for (int c = b + 1; c < 4; ++c)
+          if (s == StrainSmoothing::face) keys.push_back({id[a], id[b], id[c]});
+      }
+    }
+    for (auto& k : keys) std::sort(k.begin(), k.end());
+    for (auto& k : keys) {
+      auto& d = domains.try_emplace(k, M3::Zero(), 0.0).first->second;
+      d.first += V * F;
+      d.second += V;
+    }
+  }
+  const double fraction = s == StrainSmoothing::edge ? 1.0 / 6 : 1.0 / 4;
+  for (const auto& [key, d] : domains)
+    e += (1 - share) * fraction * d.second * W(d.first / d.second);
+  for (const auto& [a, vV] : nodal) e += K / 2 * vV.second * std::pow(vV.first / vV.second - 1, 2);
+  return e;
+}
+
+// Each smoothing, with and without the element's share: the energy equals the independent one and
+// the forces are minus its gradient, on a randomly deformed mesh and after a cut.
+TEST(Continuum, SmoothedStrainsMatchAnIndependentReference) {
+  for (const StrainSmoothing s :
+       {StrainSmoothing::face, StrainSmoothing::edge, StrainSmoothing::node}) {
+    for (const double share : {0.0, 0.1}) {
+      for (const bool cut : {false, true}) {
+        std::mt19937 rng(21);
+        SphereModel<double> m = random_model<double>(rng, {2, 2, 1}, 0.2);
+        m.set_region_law(0, ForceLaw::continuum);
+        m.velocities().setZero();
+        if (cut)  // two elements out: their neighbours' domains lose them
+          for (const Index t : {Index(1), Index(5)}) m.tetrahedron_intact()[t] = 0;
+        ForceModel<double> f = smoothed(m, s, share);
+        f.update_topology(m);
+        const Positions<double> x = m.positions();
+        const std::string what =
+            std::string(to_string(s)) + " share " + std::to_string(share) + +(cut ? " cut" : "");
+        const double e = textbook_smoothed_energy(m, x, s, share);
+        ASSERT_GT(e, 0) << what;
+        EXPECT_TRUE(near(f.elastic_energy(m, x), e, 1e-10)) << what;
+        Positions<double> g(m.num_nodes(), 3);
+        f.evaluate(m, x, m.velocities(), g);
+        const double scale = g.cwiseAbs().maxCoeff();
+        double worst = 0;
+        for (Index i = 0; i < m.num_nodes(); ++i)
+          for (int c = 0; c < 3; ++c) {
+            Positions<double> xp = x, xm = x;
+            xp(i, c) += 1e-9;
+            xm(i, c) -= 1e-9;
+            const double fd = -(textbook_smoothed_energy(m, xp, s, share) -
+                                textbook_smoothed_energy(m, xm, s, share)) /
+                              2e-9;
+            worst = std::max(worst, std::abs(fd - g(i, c)));
+          }
+        EXPECT_LT(worst, 1e-6 * scale) << what;
+        // It is not the element law's energy (the test would not see a smoothing left out).
+        ForceModel<double> plain = no_gravity(m);
+        plain.update_topology(m);
+        EXPECT_GT(std::abs(plain.elastic_energy(m, x) - e), 1e-3 * e) << what;
+      }
+    }
+  }
+}
+
+// The smoothed strains keep the law's invariants: forces sum to zero with no torque, a rigid
+// rotation costs nothing, and a homogeneous strain is reproduced exactly (every domain's average
+// of equal F is that F): E and mu come back and the interior nodes are in equilibrium.
+TEST(Continuum, SmoothedStrainsBalanceAndPassThePatchTest) {
+  for (const StrainSmoothing s :
+       {StrainSmoothing::face, StrainSmoothing::edge, StrainSmoothing::node}) {
+    std::mt19937 rng(11);
+    SphereModel<double> m = random_model<double>(rng, {3, 2, 2}, 0.2);
+    m.set_region_law(0, ForceLaw::continuum);
+    ForceModel<double> f = smoothed(m, s, 0.1);
+    Positions<double> g(m.num_nodes(), 3);
+    f.evaluate(m, m.positions(), m.velocities(), g);
+    const double scale = g.cwiseAbs().maxCoeff();
+    ASSERT_GT(scale, 0);
+    EXPECT_LT(g.colwise().sum().norm(), 1e-10 * scale * double(m.num_nodes())) << to_string(s);
+    V3 torque = V3::Zero();
+    for (Index i = 0; i < m.num_nodes(); ++i)
+      torque += m.positions().row(i).transpose().cross(g.row(i).transpose());
+    EXPECT_LT(torque.norm(), 1e-10 * scale * 0.03 * double(m.num_nodes())) << to_string(s);
+    const M3 R = Eigen::AngleAxisd(0.7, V3(1, 2, 3).normalized()).toRotationMatrix();
+    f.evaluate(m, affine(m, R), Positions<double>::Zero(m.num_nodes(), 3), g);
+    EXPECT_LT(g.cwiseAbs().maxCoeff(), 1e-9 * scale) << to_string(s);
+
+    const Material<double> mat = soft(0.45);
+    SphereModel<double> b = continuum_block({4, 4, 4}, 0.0025, mat);
+    ForceModel<double> fb = smoothed(b, s, 0.1);
+    const double V = block_volume(b), E = mat.youngs_modulus, eps = 1e-4, nu = 0.45;
+    const M3 uni = V3(1 + eps, 1 - nu * eps, 1 - nu * eps).asDiagonal();
+    EXPECT_TRUE(near(fb.elastic_energy(b, affine(b, uni)) / V, 0.5 * E * eps * eps, 2e-3));
+    M3 shear = M3::Identity();
+    shear(0, 1) = eps;
+    EXPECT_TRUE(near(fb.elastic_energy(b, affine(b, shear)) / V,
+                     0.5 * mat.shear_modulus() * eps * eps, 2e-3));
+    Positions<double> gb(b.num_nodes(), 3);
+    fb.evaluate(b, affine(b, uni), Positions<double>::Zero(b.num_nodes(), 3), gb);
+    const double face = gb.cwiseAbs().maxCoeff();
+    for (Index i = 0; i < b.num_nodes(); ++i) {
+      const V3 p = b.rest_positions().row(i).transpose();
+      if ((p.array() > 1e-9).all() && (p.array() < 0.01 - 1e-9).all()) {
+        EXPECT_LT(gb.row(i).norm(), 1e-9 * face) << to_string(s) << " " << i;
+      }
+    }
+  }
+}
+
+// The option is checked: a share outside [0, 1] is an fsm::Error at set_options(), never in a
+// step.
+TEST(Continuum, SmoothingShareIsChecked) {
+  SphereModel<double> m = continuum_block({1, 1, 1}, 0.005);
+  ForceModel<double> f = no_gravity(m);
+  ForceModel<double>::Options o = f.options();
+  o.strain_smoothing = StrainSmoothing::node;
+  for (const double bad : {-0.1, 1.5, std::nan("")}) {
+    o.smoothing_element_share = bad;
+    EXPECT_THROW(f.set_options(o), Error) << bad;
+  }
 }
 
 }  // namespace

@@ -3,7 +3,8 @@
 // (docs/validation.md).
 //
 //   fsm-indent SCENE.json --case compression|punch|sphere|cylinder [--law links|continuum]
-//              [--nu NU] [--depth MM] [--speed MM_PER_MIN] [--samples N] [--dt S]
+//              [--nu NU] [--smoothing element|face|edge|node] [--element-share A] [--depth MM]
+//              [--speed MM_PER_MIN] [--samples N] [--dt S]
 //              [--integrator NAME] [--stiffness-scale F] [--poisson NU | --kappa PA]
 //              [--density-scale F] [--out CSV]
 //
@@ -44,7 +45,9 @@ struct Args {
   std::string scene;
   std::string load_case = "compression";
   std::string law = "links";
-  std::string contact = "vertices";  // how the contact indenters meet the block
+  std::string contact = "vertices";   // how the contact indenters meet the block
+  std::string smoothing = "element";  // continuum law: how the deviatoric strain is measured
+  double element_share = 0.1;         // continuum law, smoothed: the element strain's share
   double nu = 0.49;
   double depth = 2.5e-3;     // m
   double speed = 5e-3 / 60;  // m/s
@@ -85,6 +88,16 @@ Args parse(int argc, char** argv) {
       ->check(CLI::IsMember({"links", "continuum"}))
       ->capture_default_str();
   app.add_option("--nu", a.nu, "Poisson's ratio of the continuum law")->capture_default_str();
+  app.add_option("--smoothing", a.smoothing,
+                 "continuum law: the deviatoric strain per element or smoothed over faces "
+                 "(ForceModel::Options::strain_smoothing)")
+      ->check(CLI::IsMember({"element", "face", "edge", "node"}))
+      ->capture_default_str();
+  app.add_option("--element-share", a.element_share,
+                 "continuum law, smoothed strain: the element strain's share of the deviatoric "
+                 "energy (ForceModel::Options::smoothing_element_share)")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
   app.add_option("--depth", depth_mm, "indentation depth (mm)")
       ->check(fsm::support::positive_number())
       ->capture_default_str();
@@ -191,6 +204,11 @@ int run(const Args& a) {
   Simulation<double>::Options opt;
   opt.integrator = a.integrator;
   opt.forces.gravity.setZero();
+  opt.forces.strain_smoothing = a.smoothing == "face"   ? StrainSmoothing::face
+                                : a.smoothing == "edge" ? StrainSmoothing::edge
+                                : a.smoothing == "node" ? StrainSmoothing::node
+                                                        : StrainSmoothing::element;
+  opt.forces.smoothing_element_share = a.element_share;
   Simulation<double> sim(std::move(model), opt);
   // The contact indenters: frictionless, as a user's instrument (default ContactOptions but for
   // --contact).
@@ -328,7 +346,7 @@ int run(const Args& a) {
       "\"omega_volume\": %.6g, \"stable_dt\": %s, \"mean_edge_m\": %.6g, "
       "\"final_force_N\": %s, \"samples\": %zu, \"law\": \"%s\", \"nu\": %.4g, "
       "\"softened_contacts\": %ld, \"inverted_steps\": %ld, \"max_penetration_m\": %s, "
-      "\"mean_iterations\": %.4g}\n",
+      "\"mean_iterations\": %.4g, \"smoothing\": \"%s\", \"element_share\": %.4g}\n",
       a.scene.c_str(), to_string(tissue.parts[0].topology), a.load_case.c_str(),
       a.integrator.c_str(), dt, sim.model().num_nodes(), sim.model().num_links(), q.tetrahedra,
       sim.model().num_fixed(), driven.size(), a.stiffness_scale, kappa, a.poisson, steps, diverged,
@@ -338,7 +356,8 @@ int run(const Args& a) {
       json_number(sample_f.back()).c_str(), sample_d.size(), a.law.c_str(),
       a.law == "continuum" ? a.nu : 0.0, softened, inverted_steps,
       json_number(contact ? max_penetration : std::nan("")).c_str(),
-      double(iterations) / double(std::max(steps, 1L)));
+      double(iterations) / double(std::max(steps, 1L)), a.smoothing.c_str(),
+      a.smoothing == "element" ? 1.0 : a.element_share);
   return finite && diverged == 0 ? 0 : 3;
 }
 

@@ -130,18 +130,26 @@ class ForceModel {
     /// mass-proportional damping that stands in for the tissue and fluid around an organ. It damps
     /// rigid motion (a tube swinging like a pendulum), which link damping cannot. 0 = none.
     Scalar drag{0};
-    /// Continuum elements whose shape quality (6 sqrt(2) V / l_rms^3 at rest: 1 for a regular
-    /// tetrahedron, 0 for a flat one) is below this get an exact-shape element tangent in the
-    /// implicit solve instead of springs along their edges, which cannot resist a sliver's apex
-    /// moving across its base (docs/physics.md section 11). 0 = none, above 1 = every element
-    /// (each costs about five times its edge springs per solver iteration).
     /// Run the link loops (the forces, and the implicit solve's link blocks and products) and the
     /// continuum law's element loops (forces, energy) on the SIMD kernels when the CPU has them
     /// (AVX2 with FMA; double only: detail/simd_links.hpp, detail/simd_tets.hpp); false: the
     /// scalar loops, the reference. Both give the same results to rounding.
     bool simd{true};
+    /// Continuum elements whose shape quality (6 sqrt(2) V / l_rms^3 at rest: 1 for a regular
+    /// tetrahedron, 0 for a flat one) is below this get an exact-shape element tangent in the
+    /// implicit solve instead of springs along their edges, which cannot resist a sliver's apex
+    /// moving across its base (docs/physics.md section 11). 0 = none, above 1 = every element
+    /// (each costs about five times its edge springs per solver iteration).
     Scalar element_tangent_quality{
         Scalar(detail::ContinuumTerm<Scalar>::default_element_tangent_quality)};
+    /// How the continuum law measures the deviatoric strain: each tetrahedron's own F (element,
+    /// the linear tetrahedron, the default) or F averaged over the tetrahedra at each face, edge
+    /// or node (softer, closer to the continuum in bulk deformation at the same nodes, softer
+    /// under a point load; scalar loops only; docs/physics.md section 11).
+    StrainSmoothing strain_smoothing{StrainSmoothing::element};
+    /// With a smoothed strain: the share of the deviatoric energy kept on each element's own
+    /// strain, in [0, 1] (it stabilises the smoothed strains' soft local modes).
+    Scalar smoothing_element_share{Scalar(detail::ContinuumTerm<Scalar>::default_element_share)};
   };
 
   ForceModel() = default;

@@ -26,6 +26,7 @@
 #include <Eigen/Core>
 #include <Eigen/LU>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -40,6 +41,44 @@
 #include "fsm/detail/simd_tets.hpp"
 #include "fsm/sphere_model.hpp"
 #include "fsm/types.hpp"
+
+namespace fsm {
+
+/// How the continuum law measures the deviatoric strain (docs/physics.md section 11).
+enum class StrainSmoothing : std::uint8_t {
+  /// Each tetrahedron's own F (the linear tetrahedron: too stiff in bending and shear at the
+  /// spacings a real-time model can afford).
+  element,
+  /// F averaged, by rest volume, over the two tetrahedra at each interior face (face-based strain
+  /// smoothing, Nguyen-Thoi et al. 2009): the deviatoric energy lives on the faces' domains, each
+  /// a quarter of its two elements, so every element couples to its four neighbours' strains. The
+  /// same nodes, the same number of unknowns; softer and closer to the continuum.
+  face,
+  /// F averaged over the tetrahedra around each edge, on a sixth of each (edge-based smoothing,
+  /// ES-FEM-T4): softer than face.
+  edge,
+  /// F averaged over the tetrahedra around each node, on a quarter of each (node-based smoothing,
+  /// NS-FEM, as the volumetric part already is): the softest; alone it has soft local modes that
+  /// a point load finds, which the element share (ForceModel::Options::smoothing_element_share)
+  /// stabilises.
+  node,
+};
+
+/// @brief Name of a StrainSmoothing ("element", "face", "edge", "node").
+[[nodiscard]] inline const char* to_string(StrainSmoothing s) noexcept {
+  switch (s) {
+    case StrainSmoothing::face:
+      return "face";
+    case StrainSmoothing::edge:
+      return "edge";
+    case StrainSmoothing::node:
+      return "node";
+    default:
+      return "element";
+  }
+}
+
+}  // namespace fsm
 
 namespace fsm::detail {
 
@@ -174,6 +213,8 @@ class ContinuumTerm {
   /// (docs/physics.md section 11): at 0.2 the sagging VHF pelvis needs 22 solver iterations a step
   /// (at 1.0: 38) but the validation's bonded compression twice as many as without it.
   static constexpr double element_tangent_strain = 0.5;
+  /// Default of set_smoothing()'s element share.
+  static constexpr double default_element_share = 0.1;
 
   /// The cube of a tetrahedron's root-mean-square edge length, from its edge matrix.
   [[nodiscard]] static Scalar rms_edge_cubed(const Matrix3<Scalar>& Dm) noexcept {
@@ -352,7 +393,26 @@ class ContinuumTerm {
     m_edge_count.assign(num_edges(), 0);
     apply_topology(model.tetrahedron_intact().data());
     build_batches();
+    build_domains();
   }
+
+  /// How the deviatoric strain is measured (StrainSmoothing; default element) and, when it is
+  /// smoothed, the share `element_share` in [0, 1] of the deviatoric energy kept on each
+  /// element's own strain: W = (1 - share) sum_d V_d W(F_d) + share sum_T V_T W(F_T). The
+  /// element's share stabilises the smoothed strains' soft local modes (node smoothing alone
+  /// lets a point load through: docs/physics.md section 11). Allocates (the domains); not
+  /// real-time.
+  void set_smoothing(StrainSmoothing s, Scalar element_share = Scalar(default_element_share)) {
+    m_blend = std::clamp(element_share, Scalar(0), Scalar(1));
+    if (s == m_smoothing) return;
+    m_smoothing = s;
+    build_domains();
+  }
+  [[nodiscard]] StrainSmoothing smoothing() const noexcept { return m_smoothing; }
+  [[nodiscard]] Scalar smoothing_element_share() const noexcept { return m_blend; }
+  /// The smoothing domains: per face, edge or node (StrainSmoothing), the elements of one
+  /// material around it; none for StrainSmoothing::element.
+  [[nodiscard]] std::size_t num_domains() const noexcept { return m_domain_start.size() - 1; }
 
   /// Whether add_forces() and energy() run the element kernels on SIMD registers where the CPU
   /// has them (default true; the scalar loops are the reference).
@@ -415,7 +475,13 @@ class ContinuumTerm {
     // Pass 1: deviatoric forces; current volumes and their rates scattered to the nodes. The
     // per-element work on the SIMD kernel where there is one (into m_batch_out and m_batch_grad),
     // else here.
-    const bool kernel = run_force_kernel(x, viscous ? v : nullptr);
+    bool kernel;
+    if (m_smoothing != StrainSmoothing::element) {
+      smoothed_pass(x, viscous ? v : nullptr);  // into the force kernel's outputs
+      kernel = true;
+    } else {
+      kernel = run_force_kernel(x, viscous ? v : nullptr);
+    }
     for (std::size_t t = 0; t < nt; ++t) {
       if (m_removed[t]) {  // zero gradients: the later passes add nothing for it
         Scalar* g = grad(t);
@@ -530,7 +596,8 @@ class ContinuumTerm {
     std::vector<Scalar>& volume_now = m_energy_scratch;
     volume_now.assign(std::size_t(m_num_nodes), Scalar(0));  // reserved by refresh: no growth
     Scalar e(0);
-    const bool kernel = run_energy_kernel(x);
+    const bool face = m_smoothing != StrainSmoothing::element;
+    const bool kernel = !face && run_energy_kernel(x);
     for (std::size_t t = 0; t < m_volume.size(); ++t) {
       if (m_removed[t]) continue;
       const Index* id = &m_tets[4 * t];
@@ -543,12 +610,24 @@ class ContinuumTerm {
         Matrix3<Scalar> Ds;
         load_edges(x, id, Ds);
         const Matrix3<Scalar> F = Ds * dm_inv(t);
-        e += m_volume[t] *
-             deviatoric<Scalar>(F, m_c10[t], m_c10_large[t], m_q_switch[t], Scalar(j_min), nullptr);
+        if (face) Eigen::Map<Matrix3<Scalar>>{&m_element_F[9 * t]} = F;
+        if (!face || m_blend > Scalar(0))
+          e += (face ? m_blend : Scalar(1)) * m_volume[t] *
+               deviatoric<Scalar>(F, m_c10[t], m_c10_large[t], m_q_switch[t], Scalar(j_min),
+                                  nullptr);
         vt = Ds.col(0).dot(Ds.col(1).cross(Ds.col(2))) / Scalar(6);
       }
       for (int k = 0; k < 4; ++k) volume_now[std::size_t(id[k])] += vt / Scalar(4);
     }
+    if (face)
+      for (std::size_t d = 0; d < num_domains(); ++d) {
+        Matrix3<Scalar> F;
+        Scalar V;
+        std::size_t t;
+        if (!domain_strain(d, F, V, t)) continue;
+        e += (Scalar(1) - m_blend) * V *
+             deviatoric<Scalar>(F, m_c10[t], m_c10_large[t], m_q_switch[t], Scalar(j_min), nullptr);
+      }
     for (Index a = 0; a < m_num_nodes; ++a) {
       const Scalar V = m_node_volume[std::size_t(a)];
       if (!(V > Scalar(0))) continue;
@@ -961,6 +1040,8 @@ class ContinuumTerm {
     m_y4.clear();
     const std::size_t nt = m_volume.size(), nb = (nt + 3) / 4;
     m_batch_grad.assign(std::size_t(simd::tet_grad_stride) * nb, Scalar(0));
+    // (The face-smoothed pass writes the force kernel's outputs for any Scalar.)
+    m_batch_out.assign(std::size_t(simd::tet_out_stride) * nb, Scalar(0));
     if constexpr (std::is_same_v<Scalar, double>) {
       if (nt == 0) return;
       m_batch_nodes.assign(16 * nb, 0);
@@ -976,11 +1057,142 @@ class ContinuumTerm {
           R[simd::tet_rest_q_switch] = m_q_switch[t];
           R[simd::tet_rest_volume] = m_volume[t];
         }
-      m_batch_out.assign(std::size_t(simd::tet_out_stride) * nb, 0.0);
       m_energy_out.assign(std::size_t(simd::tet_energy_stride) * nb, 0.0);
       m_x4.assign(4 * std::size_t(m_num_nodes), 0.0);
       m_v4.assign(4 * std::size_t(m_num_nodes), 0.0);
       m_y4.assign(4 * std::size_t(m_num_nodes), 0.0);
+    }
+  }
+  // The smoothing domains (StrainSmoothing): per face, edge or node of the elements, the
+  // elements of one material around it (CSR); each element is in m_domain_share^-1 of them.
+  void build_domains() {
+    const std::size_t nt = m_volume.size();
+    m_domain_start.assign(1, 0);
+    m_domain_elements.clear();
+    m_element_F.assign(9 * nt, Scalar(0));
+    m_element_P.assign(9 * nt, Scalar(0));
+    if (m_smoothing == StrainSmoothing::element) return;
+    // (sorted node key, material, element)
+    using Key = std::array<Index, 3>;
+    std::vector<std::tuple<Key, Scalar, Scalar, Scalar, Index>> items;
+    auto push = [&](std::size_t t, Key k) {
+      std::sort(k.begin(), k.end());
+      items.emplace_back(k, m_c10[t], m_c10_large[t], m_q_switch[t], Index(t));
+    };
+    for (std::size_t t = 0; t < nt; ++t) {
+      const Index* id = &m_tets[4 * t];
+      if (m_smoothing == StrainSmoothing::face) {
+        push(t, {id[1], id[2], id[3]});
+        push(t, {id[0], id[2], id[3]});
+        push(t, {id[0], id[1], id[3]});
+        push(t, {id[0], id[1], id[2]});
+      } else if (m_smoothing == StrainSmoothing::edge) {
+        for (int a = 0; a < 4; ++a)
+          for (int b = a + 1; b < 4; ++b) push(t, {-1, id[a], id[b]});
+      } else {
+        for (int a = 0; a < 4; ++a) push(t, {-1, -1, id[a]});
+      }
+    }
+    std::sort(items.begin(), items.end());
+    for (std::size_t k = 0; k < items.size(); ++k) {
+      if (k > 0 && (std::get<0>(items[k]) != std::get<0>(items[k - 1]) ||
+                    std::get<1>(items[k]) != std::get<1>(items[k - 1]) ||
+                    std::get<2>(items[k]) != std::get<2>(items[k - 1]) ||
+                    std::get<3>(items[k]) != std::get<3>(items[k - 1])))
+        m_domain_start.push_back(Index(k));
+      m_domain_elements.push_back(std::get<4>(items[k]));
+    }
+    if (!items.empty()) m_domain_start.push_back(Index(items.size()));
+    m_domain_share = m_smoothing == StrainSmoothing::face   ? Scalar(1) / Scalar(4)
+                     : m_smoothing == StrainSmoothing::edge ? Scalar(1) / Scalar(6)
+                                                            : Scalar(1) / Scalar(4);
+  }
+  // Domain d's smoothed F from m_element_F (its intact elements' rest-volume average), its rest
+  // volume (its share of theirs) and an element for its material; false if all are removed.
+  bool domain_strain(std::size_t d, Matrix3<Scalar>& F, Scalar& V, std::size_t& t) const noexcept {
+    F.setZero();
+    V = Scalar(0);
+    for (Index k = m_domain_start[d]; k < m_domain_start[d + 1]; ++k) {
+      const auto e = std::size_t(m_domain_elements[std::size_t(k)]);
+      if (m_removed[e]) continue;
+      F += m_volume[e] * Eigen::Map<const Matrix3<Scalar>>(&m_element_F[9 * e]);
+      V += m_volume[e];
+      t = e;
+    }
+    if (!(V > Scalar(0))) return false;
+    F /= V;
+    V *= m_domain_share;
+    return true;
+  }
+  // The force kernel's work with face-smoothed strains, scalar, into its outputs (m_batch_out,
+  // m_batch_grad): each element's F, volume and rate; each domain's stress; each element's force
+  // H = -V_T Pbar_T D_m^-T with Pbar_T the mean of its four domains' stresses (the gradient of
+  // sum_d V_d W(F_d): dF_d/dF_T = V_T / (4 V_d)); its state factor and distortion the largest of
+  // its domains'.
+  void smoothed_pass(const Scalar* x, const Scalar* v) noexcept {
+    const std::size_t nt = m_volume.size();
+    auto out = [&](std::size_t t) {
+      return &m_batch_out[std::size_t(simd::tet_out_stride) * (t / 4) + t % 4];
+    };
+    for (std::size_t t = 0; t < nt; ++t) {
+      if (m_removed[t]) continue;
+      const Index* id = &m_tets[4 * t];
+      Matrix3<Scalar> Ds;
+      Vector3<Scalar> g[4];
+      load_edges(x, id, Ds);
+      volume_gradient(Ds, g);
+      Scalar* gt = grad(t);
+      for (int k = 0; k < 4; ++k)
+        for (int c = 0; c < 3; ++c) gt[4 * (3 * k + c)] = g[k][c];
+      Eigen::Map<Matrix3<Scalar>>{&m_element_F[9 * t]} = Ds * dm_inv(t);
+      Eigen::Map<Matrix3<Scalar>>{&m_element_P[9 * t]}.setZero();
+      Scalar* o = out(t);
+      o[simd::tet_out_volume] = Ds.col(0).dot(Ds.col(1).cross(Ds.col(2))) / Scalar(6);
+      Scalar dvt(0);
+      if (v)
+        for (int k = 0; k < 4; ++k) dvt += g[k].dot(row(v, id[k]));
+      o[simd::tet_out_rate] = dvt;
+      o[simd::tet_out_state] = Scalar(1);
+      o[simd::tet_out_distortion] = -std::numeric_limits<Scalar>::infinity();
+    }
+    for (std::size_t d = 0; d < num_domains(); ++d) {
+      Matrix3<Scalar> F, P;
+      Scalar V;
+      std::size_t t;
+      if (!domain_strain(d, F, V, t)) continue;
+      Scalar stiffening(1), gj(1), distortion(0);
+      deviatoric(F, m_c10[t], m_c10_large[t], m_q_switch[t], Scalar(j_min), &P, &stiffening, &gj,
+                 &distortion);
+      const Scalar state = stiffening * std::max(Scalar(1), gj);
+      for (Index k = m_domain_start[d]; k < m_domain_start[d + 1]; ++k) {
+        const Index e = m_domain_elements[std::size_t(k)];
+        if (m_removed[std::size_t(e)]) continue;
+        Eigen::Map<Matrix3<Scalar>>{&m_element_P[9 * std::size_t(e)]} += m_domain_share * P;
+        Scalar* o = out(std::size_t(e));
+        o[simd::tet_out_state] = std::max(o[simd::tet_out_state], state);
+        o[simd::tet_out_distortion] = std::max(o[simd::tet_out_distortion], distortion);
+      }
+    }
+    const Scalar alpha = m_blend;
+    for (std::size_t t = 0; t < nt; ++t) {
+      if (m_removed[t]) continue;
+      Matrix3<Scalar> Pt =
+          (Scalar(1) - alpha) * Eigen::Map<const Matrix3<Scalar>>(&m_element_P[9 * t]);
+      if (alpha > Scalar(0)) {
+        Matrix3<Scalar> P;
+        Scalar stiffening(1), gj(1), distortion(0);
+        deviatoric(Matrix3<Scalar>(Eigen::Map<const Matrix3<Scalar>>(&m_element_F[9 * t])),
+                   m_c10[t], m_c10_large[t], m_q_switch[t], Scalar(j_min), &P, &stiffening, &gj,
+                   &distortion);
+        Pt += alpha * P;
+        Scalar* o = out(t);
+        o[simd::tet_out_state] =
+            std::max(o[simd::tet_out_state], stiffening * std::max(Scalar(1), gj));
+        o[simd::tet_out_distortion] = std::max(o[simd::tet_out_distortion], distortion);
+      }
+      const Matrix3<Scalar> H = -m_volume[t] * Pt * dm_inv(t).transpose();
+      Scalar* o = out(t);
+      for (int k = 0; k < 9; ++k) o[4 * k] = H(k % 3, k / 3);
     }
   }
   // Copies n nodes' rows of 3 into rows of 4.
@@ -1237,6 +1449,14 @@ class ContinuumTerm {
   std::vector<std::int32_t> m_batch_nodes;
   std::vector<Scalar> m_batch_rest, m_batch_out, m_batch_grad, m_v4, m_y4;
   mutable std::vector<Scalar> m_x4, m_energy_out;
+  // Face smoothing (build_domains()): 2 elements per domain (the second -1 for none), the first's
+  // share of their rest volume; per-step scratch: each element's F and its domains' mean stress.
+  StrainSmoothing m_smoothing{StrainSmoothing::element};
+  std::vector<Index> m_domain_start{0}, m_domain_elements;
+  Scalar m_domain_share{1};
+  Scalar m_blend{Scalar(default_element_share)};  // the element strain's share (set_smoothing())
+  mutable std::vector<Scalar> m_element_F;
+  std::vector<Scalar> m_element_P;
 };
 
 }  // namespace fsm::detail

@@ -418,6 +418,7 @@ void ForceModel<Scalar>::refresh(const SphereModel<Scalar>& model) {
   m_ranges.reserve(std::size_t(model.num_links()) / 2 + 2);
   m_continuum.refresh(model);
   m_continuum.set_simd(m_options.simd);
+  m_continuum.set_smoothing(m_options.strain_smoothing, m_options.smoothing_element_share);
   update_topology(model);
   m_element_force.assign(m_continuum.empty() ? 0 : 3 * std::size_t(n), Scalar(0));
   m_base_rhs.assign(3 * std::size_t(n), Scalar(0));
@@ -518,10 +519,13 @@ void ForceModel<Scalar>::set_options(const Options& options) {
     throw Error("", "drag", "must be non-negative and finite (1/s)");
   if (!(std::isfinite(options.element_tangent_quality) && options.element_tangent_quality >= 0))
     throw Error("", "element_tangent_quality", "must be non-negative and finite");
+  if (!(options.smoothing_element_share >= 0 && options.smoothing_element_share <= 1))
+    throw Error("", "smoothing_element_share", "must be in [0, 1]");
   m_options = options;
   if (m_continuum.element_tangent_quality() != options.element_tangent_quality)
     m_continuum.set_element_tangent_quality(options.element_tangent_quality);
   m_continuum.set_simd(options.simd);
+  m_continuum.set_smoothing(options.strain_smoothing, options.smoothing_element_share);
   resize_scratch();
 }
 
