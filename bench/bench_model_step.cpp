@@ -8,7 +8,8 @@
 //
 //   bench_model_step MODEL.fsm [--law links|continuum] [--threads N] [--tolerance TOL]
 //                    [--steps N] [--no-probe] [--continuum-part NAME]
-//                    [--element-tangent-quality Q] [--gravity-y] [--no-simd] [--json]
+//                    [--element-tangent-quality Q] [--smoothing element|face|edge|node]
+//                    [--gravity-y] [--no-simd] [--json]
 // --gravity-y: gravity along -y (the Visible Human data set's down) instead of -z.
 // --no-simd: the scalar link loops (ForceModel::Options::simd = false).
 //
@@ -31,7 +32,7 @@
 using namespace fsm;
 
 int main(int argc, char** argv) {
-  std::string path, law = "links", only;
+  std::string path, law = "links", only, smoothing = "element";
   int threads = 1, steps = 2000;
   double tolerance = 1e-3;
   double element_tangent_quality = ForceModel<double>::Options{}.element_tangent_quality;
@@ -57,6 +58,8 @@ int main(int argc, char** argv) {
       only = value();
     else if (a == "--element-tangent-quality")
       element_tangent_quality = std::atof(value().c_str());
+    else if (a == "--smoothing")
+      smoothing = value();
     else if (a == "--gravity-y")
       gravity_y = true;
     else if (a == "--no-probe")
@@ -68,19 +71,23 @@ int main(int argc, char** argv) {
     else if (!a.empty() && a[0] != '-' && path.empty())
       path = a;
     else {
-      std::fprintf(stderr,
-                   "usage: %s MODEL.fsm [--law links|continuum] [--threads N] [--tolerance TOL] "
-                   "[--steps N] [--no-probe] [--continuum-part NAME] "
-                   "[--element-tangent-quality Q] [--gravity-y] [--no-simd] [--json]\n",
-                   argv[0]);
+      std::fprintf(
+          stderr,
+          "usage: %s MODEL.fsm [--law links|continuum] [--threads N] [--tolerance TOL] "
+          "[--steps N] [--no-probe] [--continuum-part NAME] "
+          "[--element-tangent-quality Q] [--smoothing element|face|edge|node] [--gravity-y] "
+          "[--no-simd] [--json]\n",
+          argv[0]);
       return 2;
     }
   }
   if (path.empty() || (law != "links" && law != "continuum") || threads < 1 || steps < 1 ||
-      !(tolerance > 0) || !(element_tangent_quality >= 0)) {
+      !(tolerance > 0) || !(element_tangent_quality >= 0) ||
+      (smoothing != "element" && smoothing != "face" && smoothing != "edge" &&
+       smoothing != "node")) {
     std::fprintf(stderr,
                  "bench_model_step: a model file, --law links|continuum, --threads >= 1, "
-                 "--steps >= 1 and --tolerance > 0\n");
+                 "--steps >= 1, --tolerance > 0 and --smoothing element|face|edge|node\n");
     return 2;
   }
   try {
@@ -100,6 +107,10 @@ int main(int argc, char** argv) {
     so.forces.threads = threads;
     so.forces.simd = simd;
     so.forces.element_tangent_quality = element_tangent_quality;
+    so.forces.strain_smoothing = smoothing == "face"   ? StrainSmoothing::face
+                                 : smoothing == "edge" ? StrainSmoothing::edge
+                                 : smoothing == "node" ? StrainSmoothing::node
+                                                       : StrainSmoothing::element;
     if (gravity_y) so.forces.gravity = Vector3<double>(0, -9.81, 0);
     so.divergence.max_substep_halvings = 2;  // as the demo and servo_latency
     Simulation<double> sim(std::move(spheres), so);
@@ -155,22 +166,23 @@ int main(int argc, char** argv) {
           "\"probe_contacts\": %d, \"contacts\": %d, \"steps\": %d, \"mean_us\": %.1f, "
           "\"p50_us\": %.1f, \"p99_us\": %.1f, \"max_us\": %.1f, \"cg_iterations\": %.2f, "
           "\"recovered\": %ld, \"diverged\": %ld, \"diverged_before_timing\": %ld, "
-          "\"element_tangent_quality\": %g, \"gravity\": \"%s\"}\n",
+          "\"element_tangent_quality\": %g, \"gravity\": \"%s\", \"smoothing\": \"%s\"}\n",
           path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
           int(sim.model().num_tetrahedra()), law.c_str(), threads, tolerance,
           probe ? "true" : "false", int(probe_contacts), int(contacts.num_contacts()), steps,
           mean * 1e6, pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it, recovered, diverged,
-          diverged_before, element_tangent_quality, gravity_y ? "-y" : "-z");
+          diverged_before, element_tangent_quality, gravity_y ? "-y" : "-z", smoothing.c_str());
     else
       std::printf(
-          "%s: %d spheres, %d links, %d tetrahedra; %s law, %d thread(s), CG to %g; "
+          "%s: %d spheres, %d links, %d tetrahedra; %s law (%s strain), %d thread(s), CG to %g; "
           "probe on '%s' (%d contacts of %d)\n  1 ms step: mean %.1f us, p50 %.1f, p99 "
           "%.1f, max %.1f; %.2f CG iterations; %ld steps retried as half steps, %ld diverged "
           "(%ld before timing)\n",
           path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
-          int(sim.model().num_tetrahedra()), law.c_str(), threads, tolerance, target->name.c_str(),
-          int(probe_contacts), int(contacts.num_contacts()), mean * 1e6, pct(0.5) * 1e6,
-          pct(0.99) * 1e6, t.back() * 1e6, it, recovered, diverged, diverged_before);
+          int(sim.model().num_tetrahedra()), law.c_str(), smoothing.c_str(), threads, tolerance,
+          target->name.c_str(), int(probe_contacts), int(contacts.num_contacts()), mean * 1e6,
+          pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it, recovered, diverged,
+          diverged_before);
     if (probe && probe_contacts == 0) {
       std::fprintf(stderr, "bench_model_step: the probe does not touch the tissue\n");
       return 1;

@@ -205,7 +205,8 @@ TEST(ForceModel, SimdImplicitLinkKernelsMatchTheScalarLoops) {
 // loops' forces, energy, element tangents, implicit right-hand side and diagonal, and product: a
 // lattice of 29 elements per part (so the last batch of four is partly filled), linear and
 // bilinear, squeezed, stretched past the switch and with one element pushed through its base (J
-// below j_min, inverted), random velocities, one element cut out, one and two threads.
+// below j_min, inverted), random velocities, one element cut out, one and two threads; with the
+// element strain and with node-smoothed strains (the element share on the kernel).
 TEST(ForceModel, SimdElementKernelsMatchTheScalarLoops) {
   // Without AVX2+FMA (or without xsimd at build time) Options::simd runs the scalar loops, so
   // there is nothing to compare; the scalar loops have their own tests.
@@ -213,80 +214,82 @@ TEST(ForceModel, SimdElementKernelsMatchTheScalarLoops) {
     GTEST_SKIP() << "no SIMD element kernel for this CPU or build";
   std::mt19937 rng(8);
   std::normal_distribution<double> g(0.0, 1.0);
-  for (const bool bilinear : {false, true})
-    for (const bool cut : {false, true})
-      for (const int threads : {1, 2}) {
-        SCOPED_TRACE(testing::Message()
-                     << "bilinear " << bilinear << " cut " << cut << " threads " << threads);
-        SphereModel<double> model;
-        Material<double> mat = tissue<double>();
-        if (bilinear) {
-          mat.large_strain_modulus = 5 * mat.youngs_modulus;
-          mat.switch_strain = 0.05;
-        }
-        const Index r = model.add_region("block", mat);
-        add_tetrahedral_part(
-            model, make_cube_lattice(Vector3<double>(0, 0, 0), Eigen::Vector3i(3, 3, 1), 0.005), r,
-            0.0025);
-        model.set_region_law(r, ForceLaw::continuum);
-        ASSERT_NE(model.num_tetrahedra() % 4, 0) << model.num_tetrahedra();
-        for (Index i = 0; i < model.num_nodes(); ++i) {
-          auto x = model.positions().row(i);
-          x.x() *= x.x() > 0.007 ? 1.5 : 0.8;  // stretched past the switch, and squeezed
-          for (int c = 0; c < 3; ++c) {
-            model.positions()(i, c) += 0.0004 * g(rng);
-            model.velocities()(i, c) = 0.05 * g(rng);
+  for (const StrainSmoothing smoothing : {StrainSmoothing::element, StrainSmoothing::node})
+    for (const bool bilinear : {false, true})
+      for (const bool cut : {false, true})
+        for (const int threads : {1, 2}) {
+          SCOPED_TRACE(testing::Message() << "smoothing " << to_string(smoothing) << " bilinear "
+                                          << bilinear << " cut " << cut << " threads " << threads);
+          SphereModel<double> model;
+          Material<double> mat = tissue<double>();
+          if (bilinear) {
+            mat.large_strain_modulus = 5 * mat.youngs_modulus;
+            mat.switch_strain = 0.05;
           }
+          const Index r = model.add_region("block", mat);
+          add_tetrahedral_part(
+              model, make_cube_lattice(Vector3<double>(0, 0, 0), Eigen::Vector3i(3, 3, 1), 0.005),
+              r, 0.0025);
+          model.set_region_law(r, ForceLaw::continuum);
+          ASSERT_NE(model.num_tetrahedra() % 4, 0) << model.num_tetrahedra();
+          for (Index i = 0; i < model.num_nodes(); ++i) {
+            auto x = model.positions().row(i);
+            x.x() *= x.x() > 0.007 ? 1.5 : 0.8;  // stretched past the switch, and squeezed
+            for (int c = 0; c < 3; ++c) {
+              model.positions()(i, c) += 0.0004 * g(rng);
+              model.velocities()(i, c) = 0.05 * g(rng);
+            }
+          }
+          // One element's first corner through its base: J < 0.
+          const auto t0 = model.tetrahedra().row(0);
+          const Vector3<double> base = (model.positions().row(t0(1)) +
+                                        model.positions().row(t0(2)) + model.positions().row(t0(3)))
+                                           .transpose() /
+                                       3.0;
+          model.positions().row(t0(0)) =
+              (base + 0.5 * (base - model.positions().row(t0(0)).transpose())).transpose();
+          ForceModel<double>::Options o;
+          o.threads = std::min(threads, detail::max_threads());
+          o.strain_smoothing = smoothing;
+          o.simd = false;
+          ForceModel<double> scalar(model, o);
+          o.simd = true;
+          ForceModel<double> simd(model, o);
+          ASSERT_GE(scalar.inverted_elements(model.positions()), 1);
+          if (cut) {
+            model.tetrahedron_intact()[5] = 0;
+            scalar.update_topology(model);
+            simd.update_topology(model);
+          }
+          const Index n = model.num_nodes();
+          Positions<double> a(n, 3), b(n, 3);
+          scalar.evaluate(model, model.positions(), model.velocities(), a);
+          simd.evaluate(model, model.positions(), model.velocities(), b);
+          ASSERT_TRUE(b.allFinite());
+          EXPECT_GT(a.cwiseAbs().maxCoeff(), 0.0);
+          EXPECT_LE((a - b).cwiseAbs().maxCoeff(), 1e-13 * a.cwiseAbs().maxCoeff());
+          EXPECT_EQ(scalar.continuum_element_tangents(), simd.continuum_element_tangents());
+          const double ea = scalar.elastic_energy(model, model.positions());
+          const double eb = simd.elastic_energy(model, model.positions());
+          EXPECT_GT(ea, 0.0);
+          EXPECT_LE(std::abs(ea - eb), 1e-13 * ea);
+          // The implicit solve's preparation reads the kernel's volume gradients and flags.
+          const double h = 1e-3;
+          std::vector<double> blocks(std::size_t(ForceModel<double>::implicit_block_size) *
+                                     std::size_t(model.num_links()));
+          Positions<double> ra(n, 3), rb(n, 3), da(n, 3), db(n, 3);
+          scalar.prepare_implicit(model, h, JacobianForm::definite, blocks.data(), ra, da);
+          simd.prepare_implicit(model, h, JacobianForm::definite, blocks.data(), rb, db);
+          EXPECT_LE((ra - rb).cwiseAbs().maxCoeff(), 1e-13 * ra.cwiseAbs().maxCoeff());
+          EXPECT_LE((da - db).cwiseAbs().maxCoeff(), 1e-13 * da.cwiseAbs().maxCoeff());
+          // The product A p: the edge springs and the volumetric passes on the kernels.
+          Positions<double> p(n, 3), ya(n, 3), yb(n, 3);
+          for (Index i = 0; i < n; ++i)
+            for (int c = 0; c < 3; ++c) p(i, c) = g(rng);
+          scalar.apply_implicit(model, blocks.data(), p, ya);
+          simd.apply_implicit(model, blocks.data(), p, yb);
+          EXPECT_LE((ya - yb).cwiseAbs().maxCoeff(), 1e-13 * ya.cwiseAbs().maxCoeff());
         }
-        // One element's first corner through its base: J < 0.
-        const auto t0 = model.tetrahedra().row(0);
-        const Vector3<double> base = (model.positions().row(t0(1)) + model.positions().row(t0(2)) +
-                                      model.positions().row(t0(3)))
-                                         .transpose() /
-                                     3.0;
-        model.positions().row(t0(0)) =
-            (base + 0.5 * (base - model.positions().row(t0(0)).transpose())).transpose();
-        ForceModel<double>::Options o;
-        o.threads = std::min(threads, detail::max_threads());
-        o.simd = false;
-        ForceModel<double> scalar(model, o);
-        o.simd = true;
-        ForceModel<double> simd(model, o);
-        ASSERT_GE(scalar.inverted_elements(model.positions()), 1);
-        if (cut) {
-          model.tetrahedron_intact()[5] = 0;
-          scalar.update_topology(model);
-          simd.update_topology(model);
-        }
-        const Index n = model.num_nodes();
-        Positions<double> a(n, 3), b(n, 3);
-        scalar.evaluate(model, model.positions(), model.velocities(), a);
-        simd.evaluate(model, model.positions(), model.velocities(), b);
-        ASSERT_TRUE(b.allFinite());
-        EXPECT_GT(a.cwiseAbs().maxCoeff(), 0.0);
-        EXPECT_LE((a - b).cwiseAbs().maxCoeff(), 1e-13 * a.cwiseAbs().maxCoeff());
-        EXPECT_EQ(scalar.continuum_element_tangents(), simd.continuum_element_tangents());
-        const double ea = scalar.elastic_energy(model, model.positions());
-        const double eb = simd.elastic_energy(model, model.positions());
-        EXPECT_GT(ea, 0.0);
-        EXPECT_LE(std::abs(ea - eb), 1e-13 * ea);
-        // The implicit solve's preparation reads the kernel's volume gradients and flags.
-        const double h = 1e-3;
-        std::vector<double> blocks(std::size_t(ForceModel<double>::implicit_block_size) *
-                                   std::size_t(model.num_links()));
-        Positions<double> ra(n, 3), rb(n, 3), da(n, 3), db(n, 3);
-        scalar.prepare_implicit(model, h, JacobianForm::definite, blocks.data(), ra, da);
-        simd.prepare_implicit(model, h, JacobianForm::definite, blocks.data(), rb, db);
-        EXPECT_LE((ra - rb).cwiseAbs().maxCoeff(), 1e-13 * ra.cwiseAbs().maxCoeff());
-        EXPECT_LE((da - db).cwiseAbs().maxCoeff(), 1e-13 * da.cwiseAbs().maxCoeff());
-        // The product A p: the edge springs and the volumetric passes on the kernels.
-        Positions<double> p(n, 3), ya(n, 3), yb(n, 3);
-        for (Index i = 0; i < n; ++i)
-          for (int c = 0; c < 3; ++c) p(i, c) = g(rng);
-        scalar.apply_implicit(model, blocks.data(), p, ya);
-        simd.apply_implicit(model, blocks.data(), p, yb);
-        EXPECT_LE((ya - yb).cwiseAbs().maxCoeff(), 1e-13 * ya.cwiseAbs().maxCoeff());
-      }
 }
 
 // The assembled dF/dx and dF/dv against central differences of evaluate().

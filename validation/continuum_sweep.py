@@ -46,9 +46,20 @@ import validate  # noqa: E402
 # (case, nu) pairs scored.
 STUDIES = [("compression", 0.49), ("compression", 0.45), ("punch", 0.49), ("punch", 0.45),
            ("sphere", 0.49), ("sphere", 0.45)]
-# The laws run per case: the ball also with the face contact (fsm-indent --contact faces).
-LAWS = {"compression": ("links", "continuum"), "punch": ("links", "continuum"),
-        "sphere": ("links", "continuum", "continuum+faces")}
+# The laws run per case: the ball also with the face contact (fsm-indent --contact faces); the
+# continuum law also with smoothed deviatoric strains ("continuum/node": fsm-indent --smoothing
+# node, ForceModel::Options::strain_smoothing, default element share).
+SMOOTHED = ("continuum/face", "continuum/node")
+LAWS = {"compression": ("links", "continuum") + SMOOTHED, "punch": ("links", "continuum") + SMOOTHED,
+        "sphere": ("links", "continuum", "continuum+faces") + SMOOTHED}
+
+
+def indent_flags(law):
+    """fsm-indent flags of a law name: base[/smoothing][+faces]."""
+    base, _, contact = law.partition("+")
+    base, _, smoothing = base.partition("/")
+    return ["--law", base, "--contact", "faces" if contact == "faces" else "vertices",
+            "--smoothing", smoothing or "element"]
 BONDED = ("compression", "punch")
 
 
@@ -84,6 +95,9 @@ def main():
     ap.add_argument("--studies", default=None,
                     help="only these studies, e.g. sphere:0.45,sphere:0.49; their rows replace "
                          "those in results/continuum_sweep.json, the others are kept")
+    ap.add_argument("--laws", default=None,
+                    help="only these laws, e.g. continuum/node,continuum/face; their rows replace "
+                         "those in results/continuum_sweep.json, the others are kept")
     ap.add_argument("--charts-only", action="store_true",
                     help="redraw the charts from results/continuum_sweep.json")
     a = ap.parse_args()
@@ -112,18 +126,18 @@ def main():
         runs = {}  # (case, law, nu) -> (curve path, fsm-indent summary)
         for case, nu in studies:
             for law in LAWS[case]:
+                if a.laws and law not in a.laws.split(","):
+                    continue
                 key_nu = nu if law != "links" else None
                 if (case, law, key_nu) in runs:
                     continue
-                tag = f"{case}_{law.replace('+', '_')}_r{r:g}" + (
+                tag = f"{case}_{law.replace('+', '_').replace('/', '_')}_r{r:g}" + (
                     f"_nu{nu:g}" if law != "links" else "")
                 out = os.path.join(a.work, tag + ".csv")
                 summary = os.path.join(a.work, tag + ".json")
                 if not (a.reuse and os.path.exists(out) and os.path.exists(summary)):
-                    p = subprocess.run([a.indent, scene, "--case", case, "--law",
-                                        law.split("+")[0], "--nu", str(nu), "--speed", "150",
-                                        "--contact", "faces" if law.endswith("+faces")
-                                        else "vertices", "--out", out],
+                    p = subprocess.run([a.indent, scene, "--case", case, *indent_flags(law),
+                                        "--nu", str(nu), "--speed", "150", "--out", out],
                                        capture_output=True, text=True)
                     if p.returncode not in (0, 3):
                         sys.exit(f"fsm-indent failed: {p.stderr}")
@@ -133,6 +147,8 @@ def main():
                     runs[(case, law, key_nu)] = (out, json.load(f))
         for case, nu in studies:
             for law in LAWS[case]:
+                if (case, law, nu if law != "links" else None) not in runs:
+                    continue
                 out, s = runs[(case, law, nu if law != "links" else None)]
                 d, F = validate.read_curve(out)
                 record({"radius_mm": r, "case": case, "nu": nu, "law": law,
@@ -172,11 +188,13 @@ def main():
     result = os.path.join(HERE, "results", "continuum_sweep.json")
     command = "validation/continuum_sweep.py --radii " + " ".join(f"{r:g}" for r in a.radii) + (
         " --no-fem" if a.no_fem else "") + (f" --studies {a.studies}" if a.studies else "")
-    if a.studies and os.path.exists(result):  # replace the rows of these studies, keep the rest
+    if a.laws:
+        command += f" --laws {a.laws}"
+    if (a.studies or a.laws) and os.path.exists(result):  # replace the rows of these studies, keep the rest
         with open(result) as f:
             old = json.load(f)
         kept = [x for x in old["runs"] if (x["case"], x["nu"]) not in studies or
-                x["radius_mm"] not in a.radii]
+                x["radius_mm"] not in a.radii or (a.laws and x["law"] not in a.laws.split(","))]
         rows = kept + rows
         command = old["command"] + "; then " + command
     with open(result, "w") as f:
@@ -188,6 +206,8 @@ def main():
 STYLE = {"links": ("o--", "tab:blue", "paper's link network"),
          "continuum": ("s-", "tab:red", "continuum law"),
          "continuum+faces": ("D-.", "tab:purple", "continuum law, face contact"),
+         "continuum/face": ("<-", "tab:orange", "continuum law, face-smoothed strain"),
+         "continuum/node": (">-", "tab:brown", "continuum law, node-smoothed strain"),
          "C3D4": ("^:", "tab:grey", "same-mesh C3D4 (CalculiX)"),
          "C3D10": ("v:", "tab:green", "same-mesh C3D10 (CalculiX)")}
 
@@ -229,7 +249,7 @@ def charts(rows):
 
     fig, ax = plt.subplots(figsize=(5.5, 4))
     for case, marker in (("compression", "o"), ("sphere", "s")):
-        for law in ("links", "continuum"):
+        for law in ("links", "continuum", "continuum/node"):
             pts = [x for x in ok if x["case"] == case and x["law"] == law and x["nu"] == 0.49]
             ax.loglog([x["median_step_us"] for x in pts], [x["max_disp_diff_mm"] for x in pts],
                       marker=marker, color=STYLE[law][1], ls="-", label=f"{case}, {law}")
@@ -261,7 +281,7 @@ def charts(rows):
         for law, (style, colour, name) in STYLE.items():
             pts = [x for x in ok if x["case"] == case and x["nu"] == nu and x["law"] == law
                    and x["radius_mm"] == r0]
-            if pts:
+            if pts and os.path.exists(pts[0]["curve"]):
                 d, F = validate.read_curve(pts[0]["curve"])
                 ax.plot(d, F, style.replace(":", "-") if law.startswith("C3D") else style,
                         color=colour, ms=3, label=f"{name}, {pts[0]['spheres']} nodes")

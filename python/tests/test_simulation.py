@@ -159,3 +159,28 @@ def test_drag_and_element_tangent_quality_options(block):
                 dict(element_tangent_quality=float("nan"))):
         with pytest.raises(fsm.Error):
             fsm.Simulation(model, **bad)
+
+
+def test_strain_smoothing_option(block):
+    """A smoothed strain reaches the forces: the same squeeze stores less energy (softer), the
+    same with any smoothing for a homogeneous strain (patch test); bad names and shares raise."""
+    model = block
+    model.set_region_law(0, fsm.ForceLaw.continuum)
+    rest = model.rest_positions.copy()
+    squeezed = rest.copy()
+    squeezed[:, 2] *= 0.98  # homogeneous: every smoothing gives the element law's energy
+    bent = rest.copy()
+    bent[:, 2] += 0.05 * (rest[:, 0] - rest[:, 0].min()) ** 2 / np.ptp(rest[:, 0])  # not linear
+    energies = {}
+    for smoothing in ("element", "face", "edge", "node"):
+        sim = fsm.Simulation(model, gravity=(0, 0, 0), strain_smoothing=smoothing)
+        energies[smoothing] = []
+        for x in (squeezed, bent):
+            sim.model.positions[:] = x
+            energies[smoothing].append(sim.energy().elastic)
+    for smoothing in ("face", "edge", "node"):
+        assert energies[smoothing][0] == pytest.approx(energies["element"][0], rel=1e-9)
+        assert energies[smoothing][1] < energies["element"][1]
+    for bad in (dict(strain_smoothing="nodes"), dict(smoothing_element_share=1.5)):
+        with pytest.raises(fsm.Error):
+            fsm.Simulation(model, **bad)

@@ -477,7 +477,10 @@ class ContinuumTerm {
     // else here.
     bool kernel;
     if (m_smoothing != StrainSmoothing::element) {
-      smoothed_pass(x, viscous ? v : nullptr);  // into the force kernel's outputs
+      // The element share's forces, the gradients, volumes and rates on the kernel where there is
+      // one; the smoothed part added to its outputs.
+      const bool element_kernel = m_blend > Scalar(0) && run_force_kernel(x, viscous ? v : nullptr);
+      smoothed_pass(x, viscous ? v : nullptr, element_kernel);
       kernel = true;
     } else {
       kernel = run_force_kernel(x, viscous ? v : nullptr);
@@ -597,15 +600,20 @@ class ContinuumTerm {
     volume_now.assign(std::size_t(m_num_nodes), Scalar(0));  // reserved by refresh: no growth
     Scalar e(0);
     const bool face = m_smoothing != StrainSmoothing::element;
-    const bool kernel = !face && run_energy_kernel(x);
+    const bool kernel = (!face || m_blend > Scalar(0)) && run_energy_kernel(x);
     for (std::size_t t = 0; t < m_volume.size(); ++t) {
       if (m_removed[t]) continue;
       const Index* id = &m_tets[4 * t];
       Scalar vt;
       if (kernel) {
         const Scalar* o = &m_energy_out[std::size_t(simd::tet_energy_stride) * (t / 4) + t % 4];
-        e += o[0];
+        e += (face ? m_blend : Scalar(1)) * o[0];
         vt = o[4];
+        if (face) {
+          Matrix3<Scalar> Ds;
+          load_edges(x, id, Ds);
+          Eigen::Map<Matrix3<Scalar>>{&m_element_F[9 * t]} = Ds * dm_inv(t);
+        }
       } else {
         Matrix3<Scalar> Ds;
         load_edges(x, id, Ds);
@@ -1129,7 +1137,9 @@ class ContinuumTerm {
   // H = -V_T Pbar_T D_m^-T with Pbar_T the mean of its four domains' stresses (the gradient of
   // sum_d V_d W(F_d): dF_d/dF_T = V_T / (4 V_d)); its state factor and distortion the largest of
   // its domains'.
-  void smoothed_pass(const Scalar* x, const Scalar* v) noexcept {
+  // `element_kernel`: the force kernel has run (the element share's forces, the gradients,
+  // volumes, rates, and the element's state and distortion are in its outputs).
+  void smoothed_pass(const Scalar* x, const Scalar* v, bool element_kernel) noexcept {
     const std::size_t nt = m_volume.size();
     auto out = [&](std::size_t t) {
       return &m_batch_out[std::size_t(simd::tet_out_stride) * (t / 4) + t % 4];
@@ -1140,6 +1150,11 @@ class ContinuumTerm {
       Matrix3<Scalar> Ds;
       Vector3<Scalar> g[4];
       load_edges(x, id, Ds);
+      if (element_kernel) {
+        Eigen::Map<Matrix3<Scalar>>{&m_element_F[9 * t]} = Ds * dm_inv(t);
+        Eigen::Map<Matrix3<Scalar>>{&m_element_P[9 * t]}.setZero();
+        continue;
+      }
       volume_gradient(Ds, g);
       Scalar* gt = grad(t);
       for (int k = 0; k < 4; ++k)
@@ -1178,6 +1193,12 @@ class ContinuumTerm {
       if (m_removed[t]) continue;
       Matrix3<Scalar> Pt =
           (Scalar(1) - alpha) * Eigen::Map<const Matrix3<Scalar>>(&m_element_P[9 * t]);
+      if (element_kernel) {  // H = alpha H_element (the kernel's) - V Pt D_m^-T
+        const Matrix3<Scalar> H = -m_volume[t] * Pt * dm_inv(t).transpose();
+        Scalar* o = out(t);
+        for (int k = 0; k < 9; ++k) o[4 * k] = alpha * o[4 * k] + H(k % 3, k / 3);
+        continue;
+      }
       if (alpha > Scalar(0)) {
         Matrix3<Scalar> P;
         Scalar stiffening(1), gj(1), distortion(0);
