@@ -464,7 +464,10 @@ class ContinuumTerm {
 
   /// Adds the elastic and (unless `viscous` is false) viscous forces at (x, v) (N) to f (all
   /// `|V| x 3`, row-major). Keeps the elements' volume gradients at x for apply_implicit().
-  void add_forces(const Scalar* x, const Scalar* v, Scalar* f, bool viscous = true) noexcept {
+  /// `x4`, `v4`: x and v already padded to four per node (the caller's, for the SIMD kernels;
+  /// optional: else the term pads its own copies).
+  void add_forces(const Scalar* x, const Scalar* v, Scalar* f, bool viscous = true,
+                  const Scalar* x4 = nullptr, const Scalar* v4 = nullptr) noexcept {
     if (empty()) return;
     Scalar* volume_now = m_node_scratch.data();  // current nodal volumes, then pressures
     Scalar* rate = m_node_coefficient.data();    // d(nodal volume)/dt
@@ -479,11 +482,12 @@ class ContinuumTerm {
     if (m_smoothing != StrainSmoothing::element) {
       // The element share's forces, the gradients, volumes and rates on the kernel where there is
       // one; the smoothed part added to its outputs.
-      const bool element_kernel = m_blend > Scalar(0) && run_force_kernel(x, viscous ? v : nullptr);
+      const bool element_kernel =
+          m_blend > Scalar(0) && run_force_kernel(x, viscous ? v : nullptr, x4, v4);
       smoothed_pass(x, viscous ? v : nullptr, element_kernel);
       kernel = true;
     } else {
-      kernel = run_force_kernel(x, viscous ? v : nullptr);
+      kernel = run_force_kernel(x, viscous ? v : nullptr, x4, v4);
     }
     for (std::size_t t = 0; t < nt; ++t) {
       if (m_removed[t]) {  // zero gradients: the later passes add nothing for it
@@ -661,8 +665,9 @@ class ContinuumTerm {
   /// volume gradients are reused): the edge springs' blocks and the nodal coefficients; adds
   /// - h^2 H v to rhs (H the tangent, so that rhs = h F + h^2 dF/dx v with the forces added by the
   /// caller) and diag(A) contributions to `diagonal`.
-  void prepare_implicit(const Scalar* x, const Scalar* v, Scalar h, Scalar* rhs,
-                        Scalar* diagonal) noexcept {
+  /// `v4`: v padded to four per node (the caller's, optional).
+  void prepare_implicit(const Scalar* x, const Scalar* v, Scalar h, Scalar* rhs, Scalar* diagonal,
+                        const Scalar* v4 = nullptr) noexcept {
     if (empty()) return;
     const Scalar h2 = h * h;
     for (std::size_t e = 0; e < num_edges(); ++e) {
@@ -706,13 +711,13 @@ class ContinuumTerm {
                         : Scalar(0);
     }
     // rhs -= h^2 H_vol v: the stiffness part of the coefficient.
-    const Scalar* v4 = nullptr;
     if constexpr (std::is_same_v<Scalar, double>) {
-      if (simd_active()) {
+      if (simd_active() && !v4) {
         pad(v, m_num_nodes, m_v4.data());
         v4 = m_v4.data();
       }
     }
+    if (!simd_active()) v4 = nullptr;
     apply_volumetric(
         v, rhs,
         [&](Index a) {
@@ -1222,22 +1227,30 @@ class ContinuumTerm {
       for (int c = 0; c < 3; ++c) a4[4 * std::ptrdiff_t(i) + c] = a[3 * std::ptrdiff_t(i) + c];
   }
   // Runs the force kernel on every batch at (x, v) (v null: no rates); false where it does not run.
-  bool run_force_kernel(const Scalar* x, const Scalar* v) noexcept {
+  // (x4, v4: the caller's padded copies, or null.)
+  bool run_force_kernel(const Scalar* x, const Scalar* v, const Scalar* x4,
+                        const Scalar* v4) noexcept {
     if constexpr (std::is_same_v<Scalar, double>) {
       if (!simd_active()) return false;
-      pad(x, m_num_nodes, m_x4.data());
-      if (v) pad(v, m_num_nodes, m_v4.data());
-      simd::tet_force_kernel()(m_batch_nodes.data(), m_batch_rest.data(), m_x4.data(),
-                               v ? m_v4.data() : nullptr, j_min, m_batch_out.data(),
-                               m_batch_grad.data(), 0, std::int32_t(m_batch_nodes.size() / 16));
+      if (!x4) {
+        pad(x, m_num_nodes, m_x4.data());
+        x4 = m_x4.data();
+      }
+      if (v && !v4) {
+        pad(v, m_num_nodes, m_v4.data());
+        v4 = m_v4.data();
+      }
+      simd::tet_force_kernel()(m_batch_nodes.data(), m_batch_rest.data(), x4, v ? v4 : nullptr,
+                               j_min, m_batch_out.data(), m_batch_grad.data(), 0,
+                               std::int32_t(m_batch_nodes.size() / 16));
       return true;
     }
-    (void)x, (void)v;
+    (void)x, (void)v, (void)x4, (void)v4;
     return false;
   }
   bool run_energy_kernel(const Scalar* x) const noexcept {
     if constexpr (std::is_same_v<Scalar, double>) {
-      if (!simd_active() || !simd::tet_energy_kernel()) return false;
+      if (!simd_active()) return false;  // (which implies the energy kernel)
       pad(x, m_num_nodes, m_x4.data());
       simd::tet_energy_kernel()(m_batch_nodes.data(), m_batch_rest.data(), m_x4.data(), j_min,
                                 m_energy_out.data(), 0, std::int32_t(m_batch_nodes.size() / 16));

@@ -623,7 +623,13 @@ void ForceModel<Scalar>::evaluate(const SphereModel<Scalar>& model, const ConstP
   };
   detail::scatter_links(m_pool.get(), model.num_nodes(), model.num_links(), f.data(), m_scratch,
                         init, kernel);
-  m_continuum.add_forces(xp, vp, f.data());
+  {
+    // (The states padded for the link kernel serve the element kernels too.)
+    const Scalar *x4 = nullptr, *v4 = nullptr;
+    if constexpr (std::is_same_v<Scalar, double>)
+      if (simd_kernel) x4 = m_x4.data(), v4 = m_v4.data();
+    m_continuum.add_forces(xp, vp, f.data(), true, x4, v4);
+  }
   for (Index k = 0; k < m_num_contacts; ++k) {
     const PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
     Scalar fn;
@@ -802,10 +808,13 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
     if (!m_continuum.empty()) {
       // The elements: h F into the rhs, then their tangent (-h^2 H v into the rhs, diag(A)).
       std::fill(m_element_force.begin(), m_element_force.end(), Scalar(0));
-      m_continuum.add_forces(x, v, m_element_force.data());
+      const Scalar *x4 = nullptr, *v4 = nullptr;  // padded above for the link kernel
+      if constexpr (std::is_same_v<Scalar, double>)
+        if (simd_prepare) x4 = m_x4.data(), v4 = m_v4.data();
+      m_continuum.add_forces(x, v, m_element_force.data(), true, x4, v4);
       Scalar* r = rhs.data();
       for (std::size_t k = 0; k < m_element_force.size(); ++k) r[k] += h * m_element_force[k];
-      m_continuum.prepare_implicit(x, v, h, r, diagonal.data());
+      m_continuum.prepare_implicit(x, v, h, r, diagonal.data(), v4);
     }
     if (m_base_rhs.size() == n3) {
       std::copy(rhs.data(), rhs.data() + n3, m_base_rhs.begin());
