@@ -98,12 +98,29 @@ def main():
     ap.add_argument("--laws", default=None,
                     help="only these laws, e.g. continuum/node,continuum/face; their rows replace "
                          "those in results/continuum_sweep.json, the others are kept")
+    ap.add_argument("--rescore", action="store_true",
+                    help="score every stored curve again against the reference as it is now "
+                         "(after validation/make_reference.py changed it), then redraw")
     ap.add_argument("--charts-only", action="store_true",
                     help="redraw the charts from results/continuum_sweep.json")
     a = ap.parse_args()
+    if a.rescore:
+        result = os.path.join(HERE, "results", "continuum_sweep.json")
+        with open(result) as f:
+            data = json.load(f)
+        for x in data["runs"]:
+            if "failed" not in x:
+                x.update(score(*validate.read_curve(x["curve"]), x["case"], x["nu"]))
+        data["command"] += "; then validation/continuum_sweep.py --rescore"
+        data["rescored"] = time.strftime("%Y-%m-%d")
+        with open(result, "w") as f:
+            json.dump(data, f, indent=1)
+        a.charts_only = True
     if a.charts_only:
         with open(os.path.join(HERE, "results", "continuum_sweep.json")) as f:
-            charts(json.load(f)["runs"])
+            rows = json.load(f)["runs"]
+        charts(rows)
+        tables(rows)
         return
     studies = STUDIES
     if a.studies:
@@ -201,6 +218,45 @@ def main():
         json.dump({"command": command, "date": time.strftime("%Y-%m-%d"), "runs": rows}, f,
                   indent=1)
     charts(rows)
+    tables(rows)
+
+
+def tables(rows):
+    """validation/results/continuum_tables.md: per study, the largest displacement difference
+    (mm) of every law at every radius, with the force at 1.25 mm against the reference's and, for
+    the ball, the largest relative force error from 0.5 to 2.5 mm."""
+    ok = [x for x in rows if "failed" not in x]
+    laws = [law for law in STYLE if any(x["law"] == law for x in ok)]
+    out = ["# The continuum sweep's tables (written by validation/continuum_sweep.py)", ""]
+    for case, nu in STUDIES:
+        here = [x for x in ok if x["case"] == case and x["nu"] == nu]
+        cols = [law for law in laws if any(x["law"] == law for x in here)]
+        if not here:
+            continue
+        out += [f"**{case}, nu = {nu:g}** (largest displacement difference, mm; in brackets the "
+                "force at 1.25 mm against the reference's" +
+                ("; then the largest force error from 0.5 to 2.5 mm" if case == "sphere" else "")
+                + ")", "",
+                "| r (mm) | nodes | " + " | ".join(STYLE[c][2] for c in cols) + " |",
+                "| --- | --- | " + " | ".join("---" for _ in cols) + " |"]
+        for r in sorted({x["radius_mm"] for x in here}, reverse=True):
+            cells, nodes = [], ""
+            for c in cols:
+                x = [y for y in here if y["radius_mm"] == r and y["law"] == c]
+                if not x:
+                    cells.append("-")
+                    continue
+                x = x[0]
+                nodes = nodes or str(x["spheres"])
+                rel = x["force_1p25_N"] / x["reference_1p25_N"] - 1
+                cell = f"{x['max_disp_diff_mm']:.3f} ({100 * rel:+.0f} %)"
+                if case == "sphere":
+                    cell += f", {100 * x['max_rel_force_error_0p5_2p5']:.1f} %"
+                cells.append(cell)
+            out.append(f"| {r:g} | {nodes} | " + " | ".join(cells) + " |")
+        out.append("")
+    with open(os.path.join(HERE, "results", "continuum_tables.md"), "w") as f:
+        f.write("\n".join(out))
 
 
 STYLE = {"links": ("o--", "tab:blue", "paper's link network"),
