@@ -394,7 +394,11 @@ TEST(ServoLoop, DecoupledSimulationThreadRunsOneRealTimePriorityBelowTheTick) {
   o.realtime_priority = 30;
   ServoLoop loop(s.sim, s.contacts, s.tool, dev, o);
   StepScheduling step(loop);
-  loop.run_real_time(0.3);
+  // Under load (a sanitizer build with other tests on both cores) a thread can start late: the
+  // run repeats, at most ten times, until both threads have been seen.
+  for (int run = 0; run < 10 && (run == 0 || dev.policy.load() < 0 || step.policy.load() < 0);
+       ++run)
+    loop.run_real_time(0.3);
   EXPECT_EQ(loop.stats().realtime, allowed);
   EXPECT_GE(loop.stats().steps, 1u);
   if (allowed) {

@@ -145,7 +145,7 @@ class ForceModel {
     /// How the continuum law measures the deviatoric strain: each tetrahedron's own F (element,
     /// the linear tetrahedron, the default) or F averaged over the tetrahedra at each face, edge
     /// or node (softer, closer to the continuum in bulk deformation at the same nodes, softer
-    /// under a point load; scalar loops only; docs/physics.md section 11).
+    /// under a point load; the smoothed part runs scalar; docs/physics.md section 11).
     StrainSmoothing strain_smoothing{StrainSmoothing::element};
     /// With a smoothed strain: the share of the deviatoric energy kept on each element's own
     /// strain, in [0, 1] (it stabilises the smoothed strains' soft local modes).

@@ -403,13 +403,13 @@ class ContinuumTerm {
   /// lets a point load through: docs/physics.md section 11). Allocates (the domains); not
   /// real-time.
   void set_smoothing(StrainSmoothing s, Scalar element_share = Scalar(default_element_share)) {
-    m_blend = std::clamp(element_share, Scalar(0), Scalar(1));
+    m_element_share = std::clamp(element_share, Scalar(0), Scalar(1));
     if (s == m_smoothing) return;
     m_smoothing = s;
     build_domains();
   }
   [[nodiscard]] StrainSmoothing smoothing() const noexcept { return m_smoothing; }
-  [[nodiscard]] Scalar smoothing_element_share() const noexcept { return m_blend; }
+  [[nodiscard]] Scalar smoothing_element_share() const noexcept { return m_element_share; }
   /// The smoothing domains: per face, edge or node (StrainSmoothing), the elements of one
   /// material around it; none for StrainSmoothing::element.
   [[nodiscard]] std::size_t num_domains() const noexcept { return m_domain_start.size() - 1; }
@@ -483,7 +483,7 @@ class ContinuumTerm {
       // The element share's forces, the gradients, volumes and rates on the kernel where there is
       // one; the smoothed part added to its outputs.
       const bool element_kernel =
-          m_blend > Scalar(0) && run_force_kernel(x, viscous ? v : nullptr, x4, v4);
+          m_element_share > Scalar(0) && run_force_kernel(x, viscous ? v : nullptr, x4, v4);
       smoothed_pass(x, viscous ? v : nullptr, element_kernel);
       kernel = true;
     } else {
@@ -603,17 +603,17 @@ class ContinuumTerm {
     std::vector<Scalar>& volume_now = m_energy_scratch;
     volume_now.assign(std::size_t(m_num_nodes), Scalar(0));  // reserved by refresh: no growth
     Scalar e(0);
-    const bool face = m_smoothing != StrainSmoothing::element;
-    const bool kernel = (!face || m_blend > Scalar(0)) && run_energy_kernel(x);
+    const bool smoothed = m_smoothing != StrainSmoothing::element;
+    const bool kernel = (!smoothed || m_element_share > Scalar(0)) && run_energy_kernel(x);
     for (std::size_t t = 0; t < m_volume.size(); ++t) {
       if (m_removed[t]) continue;
       const Index* id = &m_tets[4 * t];
       Scalar vt;
       if (kernel) {
         const Scalar* o = &m_energy_out[std::size_t(simd::tet_energy_stride) * (t / 4) + t % 4];
-        e += (face ? m_blend : Scalar(1)) * o[0];
+        e += (smoothed ? m_element_share : Scalar(1)) * o[0];
         vt = o[4];
-        if (face) {
+        if (smoothed) {
           Matrix3<Scalar> Ds;
           load_edges(x, id, Ds);
           Eigen::Map<Matrix3<Scalar>>{&m_element_F[9 * t]} = Ds * dm_inv(t);
@@ -622,22 +622,22 @@ class ContinuumTerm {
         Matrix3<Scalar> Ds;
         load_edges(x, id, Ds);
         const Matrix3<Scalar> F = Ds * dm_inv(t);
-        if (face) Eigen::Map<Matrix3<Scalar>>{&m_element_F[9 * t]} = F;
-        if (!face || m_blend > Scalar(0))
-          e += (face ? m_blend : Scalar(1)) * m_volume[t] *
+        if (smoothed) Eigen::Map<Matrix3<Scalar>>{&m_element_F[9 * t]} = F;
+        if (!smoothed || m_element_share > Scalar(0))
+          e += (smoothed ? m_element_share : Scalar(1)) * m_volume[t] *
                deviatoric<Scalar>(F, m_c10[t], m_c10_large[t], m_q_switch[t], Scalar(j_min),
                                   nullptr);
         vt = Ds.col(0).dot(Ds.col(1).cross(Ds.col(2))) / Scalar(6);
       }
       for (int k = 0; k < 4; ++k) volume_now[std::size_t(id[k])] += vt / Scalar(4);
     }
-    if (face)
+    if (smoothed)
       for (std::size_t d = 0; d < num_domains(); ++d) {
         Matrix3<Scalar> F;
         Scalar V;
-        std::size_t t;
+        std::size_t t = 0;
         if (!domain_strain(d, F, V, t)) continue;
-        e += (Scalar(1) - m_blend) * V *
+        e += (Scalar(1) - m_element_share) * V *
              deviatoric<Scalar>(F, m_c10[t], m_c10_large[t], m_q_switch[t], Scalar(j_min), nullptr);
       }
     for (Index a = 0; a < m_num_nodes; ++a) {
@@ -1137,13 +1137,14 @@ class ContinuumTerm {
     V *= m_domain_share;
     return true;
   }
-  // The force kernel's work with face-smoothed strains, scalar, into its outputs (m_batch_out,
+  // The force kernel's work with smoothed strains, scalar, into its outputs (m_batch_out,
   // m_batch_grad): each element's F, volume and rate; each domain's stress; each element's force
-  // H = -V_T Pbar_T D_m^-T with Pbar_T the mean of its four domains' stresses (the gradient of
-  // sum_d V_d W(F_d): dF_d/dF_T = V_T / (4 V_d)); its state factor and distortion the largest of
-  // its domains'.
-  // `element_kernel`: the force kernel has run (the element share's forces, the gradients,
-  // volumes, rates, and the element's state and distortion are in its outputs).
+  // H = -V_T Pbar_T D_m^-T with Pbar_T = (1 - a) s sum_{d at T} P(F_d) + a P(F_T) (the gradient
+  // of the smoothed energy: dF_d/dF_T = V_T / sum_{T' in d} V_T' and V_d = s sum V_T', so each
+  // domain's share in dE/dF_T is s V_T P(F_d)); its state factor and distortion the largest of its
+  // domains' and its own. `element_kernel`: the force kernel has run, so the element share's
+  // forces, the gradients, volumes, rates and the element's own state and distortion are in its
+  // outputs already.
   void smoothed_pass(const Scalar* x, const Scalar* v, bool element_kernel) noexcept {
     const std::size_t nt = m_volume.size();
     auto out = [&](std::size_t t) {
@@ -1153,19 +1154,15 @@ class ContinuumTerm {
       if (m_removed[t]) continue;
       const Index* id = &m_tets[4 * t];
       Matrix3<Scalar> Ds;
-      Vector3<Scalar> g[4];
       load_edges(x, id, Ds);
-      if (element_kernel) {
-        Eigen::Map<Matrix3<Scalar>>{&m_element_F[9 * t]} = Ds * dm_inv(t);
-        Eigen::Map<Matrix3<Scalar>>{&m_element_P[9 * t]}.setZero();
-        continue;
-      }
+      Eigen::Map<Matrix3<Scalar>>{&m_element_F[9 * t]} = Ds * dm_inv(t);
+      Eigen::Map<Matrix3<Scalar>>{&m_element_P[9 * t]}.setZero();
+      if (element_kernel) continue;
+      Vector3<Scalar> g[4];
       volume_gradient(Ds, g);
       Scalar* gt = grad(t);
       for (int k = 0; k < 4; ++k)
         for (int c = 0; c < 3; ++c) gt[4 * (3 * k + c)] = g[k][c];
-      Eigen::Map<Matrix3<Scalar>>{&m_element_F[9 * t]} = Ds * dm_inv(t);
-      Eigen::Map<Matrix3<Scalar>>{&m_element_P[9 * t]}.setZero();
       Scalar* o = out(t);
       o[simd::tet_out_volume] = Ds.col(0).dot(Ds.col(1).cross(Ds.col(2))) / Scalar(6);
       Scalar dvt(0);
@@ -1178,7 +1175,7 @@ class ContinuumTerm {
     for (std::size_t d = 0; d < num_domains(); ++d) {
       Matrix3<Scalar> F, P;
       Scalar V;
-      std::size_t t;
+      std::size_t t = 0;
       if (!domain_strain(d, F, V, t)) continue;
       Scalar stiffening(1), gj(1), distortion(0);
       deviatoric(F, m_c10[t], m_c10_large[t], m_q_switch[t], Scalar(j_min), &P, &stiffening, &gj,
@@ -1193,7 +1190,7 @@ class ContinuumTerm {
         o[simd::tet_out_distortion] = std::max(o[simd::tet_out_distortion], distortion);
       }
     }
-    const Scalar alpha = m_blend;
+    const Scalar alpha = m_element_share;
     for (std::size_t t = 0; t < nt; ++t) {
       if (m_removed[t]) continue;
       Matrix3<Scalar> Pt =
@@ -1483,12 +1480,14 @@ class ContinuumTerm {
   std::vector<std::int32_t> m_batch_nodes;
   std::vector<Scalar> m_batch_rest, m_batch_out, m_batch_grad, m_v4, m_y4;
   mutable std::vector<Scalar> m_x4, m_energy_out;
-  // Face smoothing (build_domains()): 2 elements per domain (the second -1 for none), the first's
-  // share of their rest volume; per-step scratch: each element's F and its domains' mean stress.
+  // Smoothed strains (build_domains()): each domain's elements (CSR), the share s of their rest
+  // volume a domain has, a (m_element_share); per-step scratch: each element's F and the sum of
+  // its domains' stresses.
   StrainSmoothing m_smoothing{StrainSmoothing::element};
   std::vector<Index> m_domain_start{0}, m_domain_elements;
   Scalar m_domain_share{1};
-  Scalar m_blend{Scalar(default_element_share)};  // the element strain's share (set_smoothing())
+  Scalar m_element_share{
+      Scalar(default_element_share)};  // the element strain's share (set_smoothing())
   mutable std::vector<Scalar> m_element_F;
   std::vector<Scalar> m_element_P;
 };
