@@ -188,6 +188,14 @@ inline Scalar deviatoric(const Matrix3<Scalar>& F, Scalar c10, Scalar c10_large,
   return W;
 }
 
+/// Copies n nodes' rows of 3 into rows of 4 (the SIMD kernels' layout; the fourth entry is left
+/// as it is).
+template <typename Scalar>
+inline void pad_rows4(const Scalar* a, Index n, Scalar* a4) noexcept {
+  for (Index i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c) a4[4 * std::ptrdiff_t(i) + c] = a[3 * std::ptrdiff_t(i) + c];
+}
+
 /// The element term: rest data, per-step scratch, forces, energy and the implicit tangent.
 template <typename Scalar>
 class ContinuumTerm {
@@ -713,7 +721,7 @@ class ContinuumTerm {
     // rhs -= h^2 H_vol v: the stiffness part of the coefficient.
     if constexpr (std::is_same_v<Scalar, double>) {
       if (simd_active() && !v4) {
-        pad(v, m_num_nodes, m_v4.data());
+        pad_rows4(v, m_num_nodes, m_v4.data());
         v4 = m_v4.data();
       }
     }
@@ -1218,11 +1226,6 @@ class ContinuumTerm {
       for (int k = 0; k < 9; ++k) o[4 * k] = H(k % 3, k / 3);
     }
   }
-  // Copies n nodes' rows of 3 into rows of 4.
-  static void pad(const Scalar* a, Index n, Scalar* a4) noexcept {
-    for (Index i = 0; i < n; ++i)
-      for (int c = 0; c < 3; ++c) a4[4 * std::ptrdiff_t(i) + c] = a[3 * std::ptrdiff_t(i) + c];
-  }
   // Runs the force kernel on every batch at (x, v) (v null: no rates); false where it does not run.
   // (x4, v4: the caller's padded copies, or null.)
   bool run_force_kernel(const Scalar* x, const Scalar* v, const Scalar* x4,
@@ -1230,11 +1233,11 @@ class ContinuumTerm {
     if constexpr (std::is_same_v<Scalar, double>) {
       if (!simd_active()) return false;
       if (!x4) {
-        pad(x, m_num_nodes, m_x4.data());
+        pad_rows4(x, m_num_nodes, m_x4.data());
         x4 = m_x4.data();
       }
       if (v && !v4) {
-        pad(v, m_num_nodes, m_v4.data());
+        pad_rows4(v, m_num_nodes, m_v4.data());
         v4 = m_v4.data();
       }
       simd::tet_force_kernel()(m_batch_nodes.data(), m_batch_rest.data(), x4, v ? v4 : nullptr,
@@ -1248,7 +1251,7 @@ class ContinuumTerm {
   bool run_energy_kernel(const Scalar* x) const noexcept {
     if constexpr (std::is_same_v<Scalar, double>) {
       if (!simd_active()) return false;  // (which implies the energy kernel)
-      pad(x, m_num_nodes, m_x4.data());
+      pad_rows4(x, m_num_nodes, m_x4.data());
       simd::tet_energy_kernel()(m_batch_nodes.data(), m_batch_rest.data(), m_x4.data(), j_min,
                                 m_energy_out.data(), 0, std::int32_t(m_batch_nodes.size() / 16));
       return true;

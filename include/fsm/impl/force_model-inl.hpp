@@ -537,12 +537,8 @@ bool ForceModel<Scalar>::simd_ready(Index n) const noexcept {
 template <typename Scalar>
 void ForceModel<Scalar>::pad_states(const Scalar* x, const Scalar* v, Index n) noexcept {
   if constexpr (std::is_same_v<Scalar, double>) {
-    for (Index i = 0; i < n; ++i) {
-      const std::ptrdiff_t k = 3 * std::ptrdiff_t(i), q = 4 * std::ptrdiff_t(i);
-      for (int c = 0; c < 3; ++c) m_x4[std::size_t(q + c)] = x[k + c];
-      if (v)
-        for (int c = 0; c < 3; ++c) m_v4[std::size_t(q + c)] = v[k + c];
-    }
+    detail::pad_rows4(x, n, m_x4.data());
+    if (v) detail::pad_rows4(v, n, m_v4.data());
   } else {
     (void)x, (void)v, (void)n;
   }
