@@ -7,12 +7,14 @@
 // Meshes: a 20 mm cube (Freudenthal lattice, 2.5 mm: 729 nodes, 3,072 tetrahedra) fixed at its
 // bottom face, and the bundled uterus's body part (its tetrahedra and their nodes) fixed where
 // the bundled model fixes it plus its lowest tenth (alone, the body has no other support): a
-// soft cantilever, bending-dominated. Load: gravity (9.81 m/s^2 along -z). Material: E =
+// soft cantilever, bending-dominated. Load: gravity, 9.81 m/s^2 along -z on the cube and across
+// the body's long axis (-x) on the body. Material: E =
 // 13.15 kPa (the paper's small-strain modulus), nu = 0.45, 1050 kg/m^3, lumped masses shared;
 // Bullet's Lame parameters from the same E and nu, its damping factor 0.05.
-// Counters: sag_mm, the mean downward displacement of the top face (cube) or of every free node
-// (body) after settling 1.5 s (FSM_BENCH_SETTLE overrides; the smoke test runs 0.01 s); nodes,
-// tetrahedra; for libfsm the CG iterations per step.
+// Counters: sag_mm, the mean displacement along the load of the top face (cube) or of every free
+// node (body) after settling 1.5 s (FSM_BENCH_SETTLE overrides; the smoke test runs 0.01 s); nodes,
+// tetrahedra; for libfsm the CG iterations per step. FSM_BENCH_DUMP=DIR: the meshes as JSON for
+// the CalculiX reference of the static sag (validation/peer_reference.py).
 
 #include <BulletSoftBody/btDeformableBodySolver.h>
 #include <BulletSoftBody/btDeformableGravityForce.h>
@@ -24,6 +26,10 @@
 #include <BulletSoftBody/btSoftBodyRigidBodyCollisionConfiguration.h>
 #include <benchmark/benchmark.h>
 #include <btBulletDynamicsCommon.h>
+
+#include <cstdio>
+#include <nlohmann/json.hpp>
+#include <string>
 
 #include <cstdlib>
 #include <memory>
@@ -38,7 +44,7 @@
 namespace fsm::bench {
 namespace {
 
-constexpr double k_g = 9.81;  // the load: gravity along -z
+constexpr double k_g = 9.81;  // the load: gravity, along -z (cube) or -x (uterus body)
 constexpr double k_nu = 0.45;
 // Settling time before the sag is read and the steps are timed (s); FSM_BENCH_SETTLE overrides it
 // (the smoke test runs 0.01 s).
@@ -52,7 +58,18 @@ struct SharedMesh {
   TetrahedralMesh<double> mesh;
   std::vector<double> mass;
   std::vector<char> fixed;
-  std::vector<Index> measured;  // the nodes whose mean sag is reported
+  std::vector<Index> measured;          // the nodes whose mean sag is reported
+  Vector3<double> gravity{0, 0, -k_g};  // the load (m/s^2)
+  // The mean displacement of the measured nodes along the load's direction.
+  template <typename Positions>
+  [[nodiscard]] double sag(const Positions& x) const {
+    const Vector3<double> down = gravity.normalized();
+    double sum = 0;
+    for (const Index i : measured)
+      sum +=
+          down.dot(Vector3<double>(x(i, 0), x(i, 1), x(i, 2)) - mesh.vertices.row(i).transpose());
+    return sum / double(measured.size());
+  }
 };
 
 Material<double> tissue() {
@@ -117,7 +134,10 @@ SharedMesh uterus_body() {
     if (!fixed) s.measured.push_back(Index(i));
   }
   // The bundled body is held by its attachments to the other parts; alone it needs its own
-  // support: fix its lowest 10 % (the cervix end) as well.
+  // support: fix its lowest 10 % (the cervix end) as well. The body's long axis is z: loaded
+  // along it, the body is a column under its own weight, which buckles (CalculiX finds no static
+  // equilibrium past about half of gravity on this mesh); loaded across it (-x), a cantilever.
+  s.gravity = Vector3<double>(-k_g, 0, 0);
   double zmin = s.mesh.vertices.col(2).minCoeff(), zmax = s.mesh.vertices.col(2).maxCoeff();
   s.measured.clear();
   for (std::size_t i = 0; i < global.size(); ++i) {
@@ -127,10 +147,47 @@ SharedMesh uterus_body() {
   return s;
 }
 
+// FSM_BENCH_DUMP=DIR writes each shared mesh as DIR/peer_<name>.json (vertices in m, tetrahedra,
+// fixed flags, the measured nodes, the material and the load), for the CalculiX reference of the
+// static sag (validation/peer_reference.py).
+void dump(const SharedMesh& s, const char* name) {
+  const char* dir = std::getenv("FSM_BENCH_DUMP");
+  if (!dir) return;
+  nlohmann::json j;
+  const Material<double> mat = tissue();
+  j["name"] = name;
+  j["youngs_modulus_pa"] = mat.youngs_modulus;
+  j["poisson_ratio"] = k_nu;
+  j["density"] = mat.density;
+  j["gravity"] = {s.gravity.x(), s.gravity.y(), s.gravity.z()};
+  for (Index i = 0; i < s.mesh.vertices.rows(); ++i)
+    j["vertices"].push_back({s.mesh.vertices(i, 0), s.mesh.vertices(i, 1), s.mesh.vertices(i, 2)});
+  for (Index t = 0; t < s.mesh.tetrahedra.rows(); ++t)
+    j["tetrahedra"].push_back({s.mesh.tetrahedra(t, 0), s.mesh.tetrahedra(t, 1),
+                               s.mesh.tetrahedra(t, 2), s.mesh.tetrahedra(t, 3)});
+  for (std::size_t i = 0; i < s.fixed.size(); ++i)
+    if (s.fixed[i]) j["fixed"].push_back(i);
+  j["measured"] = s.measured;
+  const std::string path = std::string(dir) + "/peer_" + name + ".json";
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  if (!f) throw Error("bench_bullet: cannot write " + path);
+  const std::string text = j.dump();
+  std::fwrite(text.data(), 1, text.size(), f);
+  std::fclose(f);
+}
+
 const SharedMesh& shared(int which) {
-  static const SharedMesh c = cube();
+  static const SharedMesh c = [] {
+    SharedMesh m = cube();
+    dump(m, "cube");
+    return m;
+  }();
   if (which == 0) return c;
-  static const SharedMesh u = uterus_body();
+  static const SharedMesh u = [] {
+    SharedMesh m = uterus_body();
+    dump(m, "uterus_body");
+    return m;
+  }();
   return u;
 }
 
@@ -155,7 +212,7 @@ struct BulletScene {
   std::unique_ptr<btDeformableNeoHookeanForce> elasticity;
   btSoftBody* body{nullptr};  // owned by the world's arrays; deleted in the destructor
 
-  explicit BulletScene(const SharedMesh& s) {
+  explicit BulletScene(const SharedMesh& s) : shared(s) {
     config = std::make_unique<btSoftBodyRigidBodyCollisionConfiguration>();
     dispatcher = std::make_unique<btCollisionDispatcher>(config.get());
     broadphase = std::make_unique<btDbvtBroadphase>();
@@ -164,7 +221,7 @@ struct BulletScene {
     solver->setDeformableSolver(body_solver.get());
     world = std::make_unique<btDeformableMultiBodyDynamicsWorld>(
         dispatcher.get(), broadphase.get(), solver.get(), config.get(), body_solver.get());
-    const btVector3 g(0, 0, -k_g);
+    const btVector3 g(s.gravity.x(), s.gravity.y(), s.gravity.z());
     world->setGravity(g);
     world->getWorldInfo().m_gravity = g;
     const auto n = Index(s.mesh.vertices.rows());
@@ -214,19 +271,17 @@ struct BulletScene {
   BulletScene& operator=(const BulletScene&) = delete;
 
   void step() { world->stepSimulation(btScalar(1e-3), 1, btScalar(1e-3)); }
-  [[nodiscard]] double sag(const SharedMesh& s) const {
-    double sum = 0;
-    for (const Index i : s.measured)
-      sum += s.mesh.vertices(i, 2) - double(body->m_nodes[int(i)].m_x.z());
-    return sum / double(s.measured.size());
+  [[nodiscard]] double sag() const {
+    return shared.sag([this](Index i, int c) { return double(body->m_nodes[int(i)].m_x[c]); });
   }
+  const SharedMesh& shared;
 };
 
 void BM_BulletNeoHookeanStep(benchmark::State& state) {
   const SharedMesh& s = shared(int(state.range(0)));
   BulletScene scene(s);
   for (int k = 0; k < int(settle_steps()); ++k) scene.step();
-  const double sag = scene.sag(s);
+  const double sag = scene.sag();
   for (auto _ : state) scene.step();
   state.counters["sag_mm"] = 1e3 * sag;
   state.counters["nodes"] = double(s.mesh.vertices.rows());
@@ -246,12 +301,10 @@ void BM_FsmSameMeshStep(benchmark::State& state) {
   if (state.range(1) != 0) model.set_region_law(0, ForceLaw::continuum);
   Simulation<double>::Options o;
   o.integrator = "implicit_euler";
-  o.forces.gravity = Vector3<double>(0, 0, -k_g);
+  o.forces.gravity = s.gravity;
   Simulation<double> sim(std::move(model), o);
   for (int k = 0; k < int(settle_steps()); ++k) sim.step(1e-3);
-  double sag = 0;
-  for (const Index i : s.measured) sag += s.mesh.vertices(i, 2) - sim.model().positions()(i, 2);
-  sag /= double(s.measured.size());
+  const double sag = s.sag(sim.model().positions());
   long iterations = 0, steps = 0;
   for (auto _ : state) {
     iterations += sim.step(1e-3).solver_iterations;

@@ -51,14 +51,47 @@ def neo_hooke_constants(E_pa, nu):
     return mu / 2, 2 / K
 
 
+EDGE_GRADING = 0.6  # "compression_graded": elements 0.4x the mean size at the singular edges
+
+
+def edge_graded(s, beta=EDGE_GRADING):
+    """[0, 1] -> [0, 1], elements (1 - beta) times the mean size at s = 1 (the free side faces of
+    the quarter block, x = 20 or y = 20) and (1 + beta) times at s = 0 (the symmetry planes)."""
+    return 1 - graded(1 - s, beta)
+
+
+def edge_graded_z(s, beta=EDGE_GRADING):
+    """[0, 1] -> [0, 1], elements (1 - beta) times the mean size at both ends (the bonded bottom
+    and top) and (1 + beta) times at mid-height: the quadratic map of graded() mirrored."""
+    return 0.5 * graded(2 * s, beta) if s <= 0.5 else 1 - 0.5 * graded(2 * (1 - s), beta)
+
+
 def write_inp(path, case, n, E_pa, nu, depth=DEPTH, samples=SAMPLES, solver=None):
     """A quarter of the block, [10, 20] x [10, 20] x [0, 10] mm (both cases are symmetric about
     x = 10 and y = 10: symmetry conditions there), as a structured C3D20R mesh of n x n x n
     elements of 10/n mm; n must be a multiple of 5 for the punch's edge (2 mm from the centre)
-    to lie on element boundaries."""
+    to lie on element boundaries.
+    "compression_graded": the compression case on a mesh graded toward its singular edges (where
+    the free side faces meet the bonded bottom and top: x or y = 20 mm at z = 0 and 10 mm), with
+    the same map (edge_graded, edge_graded_z) for every n, so the meshes form one family with
+    h ~ 1/n whose elements at those edges are 0.4 times the uniform mesh's."""
+    graded_edges = case == "compression_graded"
+    if graded_edges:
+        case = "compression"
     nx, ny, nz = n, n, n
     hx, hy, hz = (W / 2) / nx, (W / 2) / ny, H / nz
     x0, y0 = W / 2, W / 2
+
+    def coords(i, j, k):  # half-grid index -> coordinates
+        if not graded_edges:
+            return x0 + i * hx / 2, y0 + j * hy / 2, k * hz / 2
+        # Corner nodes on the map; mid-side nodes halfway between their corners (straight-sided
+        # elements with centred mid-side nodes: an affine element map, which a mid-side node
+        # placed on the curved map would distort).
+        def on(f, a, m):
+            return f(a / (2 * m)) if a % 2 == 0 else 0.5 * (f((a - 1) / (2 * m)) + f((a + 1) / (2 * m)))
+        return (x0 + (W / 2) * on(edge_graded, i, nx), y0 + (W / 2) * on(edge_graded, j, ny),
+                H * on(edge_graded_z, k, nz))
     # Node grid at half spacing; keep only nodes that belong to some element (no face/body
     # centres): a point (i, j, k) on the half grid is used unless two or more indices are odd.
     ids = {}
@@ -69,7 +102,8 @@ def write_inp(path, case, n, E_pa, nu, depth=DEPTH, samples=SAMPLES, solver=None
                 if (i % 2) + (j % 2) + (k % 2) >= 2:
                     continue
                 ids[(i, j, k)] = len(ids) + 1
-                lines.append(f"{ids[(i, j, k)]}, {x0 + i * hx / 2:.9g}, {y0 + j * hy / 2:.9g}, {k * hz / 2:.9g}")
+                x, y, z = coords(i, j, k)
+                lines.append(f"{ids[(i, j, k)]}, {x:.9g}, {y:.9g}, {z:.9g}")
     elems = []
     for ez in range(nz):
         for ey in range(ny):
@@ -94,7 +128,8 @@ def write_inp(path, case, n, E_pa, nu, depth=DEPTH, samples=SAMPLES, solver=None
         raise ValueError(case)
     c10, d1 = neo_hooke_constants(E_pa, nu)
     with open(path, "w") as f:
-        f.write(f"** libfsm validation: {case}, {nx}x{ny}x{nz} C3D20R, E={E_pa} Pa, nu={nu}\n")
+        f.write(f"** libfsm validation: {case}, {nx}x{ny}x{nz} C3D20R"
+                f"{' graded toward the bonded edges' if graded_edges else ''}, E={E_pa} Pa, nu={nu}\n")
         f.write("*NODE, NSET=NALL\n" + "\n".join(lines) + "\n")
         f.write("*ELEMENT, TYPE=C3D20R, ELSET=EALL\n")
         for e, conn in enumerate(elems, 1):
@@ -137,10 +172,13 @@ def parse_dat(path):
 
 
 def run(workdir, case, n, E_pa, nu, depth=DEPTH, samples=SAMPLES, ccx="/usr/bin/ccx", threads=1,
-        solver=None, refine=(1, 2, 3)):
+        solver=None, refine=(1, 2, 3), keep_partial=False):
     """Runs one reference; returns (displacement mm, force N) arrays starting at (0, 0). If ccx
     fails (a diverging fixed increment: e.g. n = 15 compression with 0.5 mm steps), retries with
-    k times the increments for each k in `refine` and keeps every k-th."""
+    k times the increments for each k in `refine` and keeps every k-th. With keep_partial, a run
+    that fails every time returns the increments its last attempt completed (every k-th) and sets
+    run.partial; otherwise it raises."""
+    run.partial = False
     os.makedirs(workdir, exist_ok=True)
     job = f"{case}_n{n}_nu{nu:g}".replace(".", "p")
     inp = os.path.join(workdir, job + ".inp")
@@ -155,7 +193,10 @@ def run(workdir, case, n, E_pa, nu, depth=DEPTH, samples=SAMPLES, ccx="/usr/bin/
             break
         errors.append(f"{samples * k} increments: rc {r.returncode}, {len(t)} done\n" + r.stdout[-1500:])
     else:
-        raise RuntimeError(f"ccx failed on {job}:\n" + "\n".join(errors))
+        if not keep_partial or len(t) < k:
+            raise RuntimeError(f"ccx failed on {job}:\n" + "\n".join(errors))
+        run.partial = True
+        t, fz = t[:len(t) - len(t) % k], fz[:len(t) - len(t) % k]
     t, fz = t[k - 1::k], fz[k - 1::k]
     d = np.concatenate([[0.0], t * depth])
     F = np.concatenate([[0.0], -4 * fz])  # whole block (4 quarters); compressive force positive
@@ -451,7 +492,10 @@ def run_contact(workdir, case, n, E_pa, nu, depth=DEPTH, samples=10, ccx="/usr/b
             break
         errors.append(f"{samples * k} increments: rc {r.returncode}, {len(t)} done\n" + r.stdout[-1500:])
     else:
-        raise RuntimeError(f"ccx failed on {job}:\n" + "\n".join(errors))
+        if not keep_partial or len(t) < k:
+            raise RuntimeError(f"ccx failed on {job}:\n" + "\n".join(errors))
+        run.partial = True
+        t, fz = t[:len(t) - len(t) % k], fz[:len(t) - len(t) % k]
     us = parse_dat_u(dat, "TOPALL")
     t, fz = t[k - 1::k], fz[k - 1::k]
     pen = [0.0] + [penetration(case, coords, us[ti], ti * depth) for ti in t]

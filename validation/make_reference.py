@@ -37,7 +37,10 @@ import fem  # noqa: E402
 HERE = os.path.dirname(os.path.abspath(__file__))
 REF_DIR = os.path.join(HERE, "reference")
 E_NEO = 13150.0  # Pa: the paper's small-strain modulus as the neo-Hookean reference's E
-CASES = ["compression", "punch", "sphere", "cylinder"]
+CASES = ["compression", "compression_graded", "punch", "sphere", "cylinder"]
+# Bonded, displacement-driven cases (fem.write_inp); "compression_graded" is the compression on a
+# mesh family graded toward its singular edges (fem.edge_graded).
+BONDED = ("compression", "compression_graded", "punch")
 NUS = [0.49, 0.45]
 NS = [5, 10, 15, 20]  # elements per 10 mm (quarter model): 2, 1, 0.67, 0.5 mm (nominal)
 # The contact runs cost about 4x a bonded run of the same mesh (8-10 Newton iterations per
@@ -89,9 +92,10 @@ def run_one(a, case, nu, n):
     incs = 30 if case in ("compression", "punch") and n <= LEGACY_N else a.increments
     solver = {"spooles": None, "iterative": "ITERATIVE CHOLESKY"}[a.solver]
     t0 = time.time()
-    if case in ("compression", "punch"):
-        d, F = fem.run(a.work, case, n, E_NEO, nu, samples=incs, solver=solver, ccx=a.ccx)
-        incs *= fem.run.last_refine
+    if case in BONDED:
+        d, F = fem.run(a.work, case, n, E_NEO, nu, samples=incs, solver=solver, ccx=a.ccx,
+                       refine=(1,) if a.keep_partial else (1, 2, 3), keep_partial=a.keep_partial)
+        incs *= fem.run.last_refine if not fem.run.partial else 1
         pen = pen_rel = None
     else:
         d, F, p, k = fem.run_contact(a.work, case, n, E_NEO, nu, samples=incs, solver=solver,
@@ -100,7 +104,9 @@ def run_one(a, case, nu, n):
         pen = float(np.max(p))
         pen_rel = float(np.max(p[1:] / d[1:]))
     sec = time.time() - t0
+    partial = case in BONDED and fem.run.partial
     return d, F, {"seconds": round(sec, 1), "increments": incs, "solver": a.solver,
+                  "partial_to_mm": float(d[-1]) if partial else None,
                   "max_penetration_mm": pen, "element_mm": 10.0 / n,
                   "max_penetration_over_displacement": None if pen is None else pen_rel,
                   "when": time.strftime("%Y-%m-%d %H:%M")}
@@ -162,8 +168,9 @@ def extrapolate2(h, f, p):
 
 def analyse(a, runs):
     """Per case and Poisson ratio, the three finest meshes (a run that stopped early, kept as
-    <case>_nu<nu>_n<n>_partial.csv, counts as the finest where it has samples; past its end the
-    two other meshes are extrapolated with the last observed order)."""
+    <case>_nu<nu>_n<n>_partial.csv, counts where it has samples; past its end the two finest
+    meshes that have the sample are extrapolated with the last observed order, and where fewer
+    than two have it the converged curve ends: `reaches_mm`)."""
     summary, conv_rows = {}, []
     for case in CASES:
         for nu in NUS:
@@ -174,9 +181,10 @@ def analyse(a, runs):
                 conv_rows.append([case, nu, n, n ** 3, 10.0 / n, np.interp(1.25, d, F),
                                   np.interp(2.5, d, F), r.get("seconds"), r.get("increments"),
                                   r.get("max_penetration_mm")])
-            part = [n for n in range(2, 61) if n not in full and n > max(full, default=0)
+            # A run that stopped early (<case>_nu<nu>_n<n>_partial.csv) counts where it has samples.
+            part = [n for n in range(2, 61) if n not in full
                     and os.path.exists(partial_path(case, nu, n))]
-            ns = full + part[-1:]
+            ns = sorted(full + part)
             if len(ns) < 3:
                 continue
             use = ns[-3:]
@@ -187,26 +195,36 @@ def analyse(a, runs):
             def has(c, x):
                 return np.min(np.abs(c[0] - x)) < 1e-5
 
-            # output grid: the samples of the densest of the three curves that covers 2.5 mm
-            complete = [i for i in range(3) if curves[i][0][-1] > DEPTH_MM - 1e-6]
-            dense = max(complete, key=lambda i: (len(curves[i][0]), use[i]))
+            # Output grid: the samples of the densest of the curves that reach furthest. At each
+            # sample, the three meshes where all have it; else the two finest that have it with
+            # the last observed order; where fewer than two have it, the converged curve ends.
+            reach = max(c[0][-1] for c in curves)
+            furthest = [i for i in range(3) if curves[i][0][-1] > reach - 1e-6]
+            dense = max(furthest, key=lambda i: (len(curves[i][0]), use[i]))
             dd, FF = curves[dense]
             rows, p_last = [], None
             for x in dd:
                 if x == 0:
                     rows.append((0.0, [0.0] * 3, 0.0, 0.0, None, "zero"))
                     continue
-                if all(has(c, x) for c in curves):
-                    f = [float(np.interp(x, c[0], c[1])) for c in curves]
+                avail = [i for i in range(3) if has(curves[i], x)]
+                f = [float(np.interp(x, c[0], c[1])) if i in avail else None
+                     for i, c in enumerate(curves)]
+                if len(avail) == 3:
                     fe, u, p, how = extrapolate(h, f)
                     if p is not None:
                         p_last = min(max(p, P_RANGE[0]), P_RANGE[1])
-                    rows.append((float(x), f, fe, u, p, how))
-                elif x > curves[2][0][-1] + 1e-9 and has(curves[0], x) and has(curves[1], x) \
-                        and p_last is not None:
-                    f = [float(np.interp(x, c[0], c[1])) for c in curves[:2]] + [None]
-                    fe, u, p, how = extrapolate2(h[:2], f[:2], p_last)
-                    rows.append((float(x), f, fe, u, p, how))
+                elif len(avail) == 2 and p_last is not None and \
+                        all(x > c[0][-1] + 1e-9 for i, c in enumerate(curves) if i not in avail):
+                    fe, u, p, how = extrapolate2([h[i] for i in avail], [f[i] for i in avail],
+                                                 p_last)
+                elif sum(x > c[0][-1] + 1e-9 for c in curves) >= 2:
+                    break  # fewer than two meshes reach this far
+                else:
+                    continue  # a sample that a coarser increment grid does not have
+
+                rows.append((float(x), f, fe, u, p, how))
+            dd, FF = dd[dd <= rows[-1][0] + 1e-9], FF[dd <= rows[-1][0] + 1e-9]
             dc = np.array([r[0] for r in rows])
             fe = np.array([r[2] for r in rows])
             ue = np.array([r[3] for r in rows])
@@ -230,6 +248,7 @@ def analyse(a, runs):
                 "case": case, "nu": nu, "meshes_n": use, "element_mm": h,
                 "partial_finest": bool(use[-1] in part),
                 "finest_reaches_mm": float(curves[2][0][-1]),
+                "reaches_mm": float(dd[-1]),
                 "all_meshes_n": ns,
                 "seconds": [runs.get(run_key(case, nu, n), {}).get("seconds") for n in use],
                 "increments": [runs.get(run_key(case, nu, n), {}).get("increments") for n in use],
@@ -277,6 +296,9 @@ def main():
     ap.add_argument("--penalty", type=float, default=None,
                     help="contact, MPa/mm (default fem.PENALTY: sphere 50, cylinder 10)")
     ap.add_argument("--reuse", action="store_true", help="skip runs whose curve file exists")
+    ap.add_argument("--keep-partial", action="store_true",
+                    help="bonded cases: one attempt, no retries with more increments; a run that "
+                    "stops early is kept as <case>_nu<nu>_n<n>_partial.csv")
     ap.add_argument("--analyse", action="store_true", help="no ccx: only the extrapolation")
     ap.add_argument("--deadline", type=float, default=0,
                     help="seconds: start no new run after this much wall time")
@@ -293,9 +315,10 @@ def main():
         for n in ns_all:  # coarse meshes of every case first: a budget cut loses the finest
             for nu in nus:
                 for case in cases:
-                    if not a.ns and n not in (NS if case in ("compression", "punch") else NS_CONTACT):
+                    if not a.ns and n not in (NS if case in BONDED else NS_CONTACT):
                         continue
-                    if a.reuse and os.path.exists(curve_path(case, nu, n)):
+                    if a.reuse and (os.path.exists(curve_path(case, nu, n)) or
+                                    (a.keep_partial and os.path.exists(partial_path(case, nu, n)))):
                         continue
                     if a.deadline and time.time() - t_start > a.deadline:
                         print(f"deadline: {case} nu={nu:g} n={n} not run", flush=True)
@@ -307,11 +330,12 @@ def main():
                         runs[run_key(case, nu, n)] = {"failed": str(e)[:500]}
                         save_runs({run_key(case, nu, n): runs[run_key(case, nu, n)]})
                         continue
-                    write_curve(curve_path(case, nu, n), d, F)
+                    write_curve(partial_path(case, nu, n) if info["partial_to_mm"] is not None
+                                else curve_path(case, nu, n), d, F)
                     runs[run_key(case, nu, n)] = info
                     save_runs({run_key(case, nu, n): info})
                     print(f"{case} nu={nu:g} n={n}: F(1.25 mm) = {np.interp(1.25, d, F):.5g} N, "
-                          f"F(2.5 mm) = {F[-1]:.5g} N, {info['seconds']:.0f} s, pen "
+                          f"F({d[-1]:.4g} mm) = {F[-1]:.5g} N, {info['seconds']:.0f} s, pen "
                           f"{info['max_penetration_mm']}", flush=True)
     analyse(a, load_runs())
 
