@@ -141,8 +141,9 @@ SharedMesh uterus_body() {
   }
   // The bundled body is held by its attachments to the other parts; alone it needs its own
   // support: fix its lowest 10 % (the cervix end) as well. The body's long axis is z: loaded
-  // along it, the body is a column under its own weight, which buckles (CalculiX finds no static
-  // equilibrium past about half of gravity on this mesh); loaded across it (-x), a cantilever.
+  // along it, the body is a column on its narrow end under its own weight, which most likely
+  // buckles or tips (CalculiX found no static equilibrium past 30-54 % of gravity on this mesh);
+  // loaded across it (-x), a cantilever.
   s.gravity = Vector3<double>(-k_g, 0, 0);
   double zmin = s.mesh.vertices.col(2).minCoeff(), zmax = s.mesh.vertices.col(2).maxCoeff();
   s.measured.clear();

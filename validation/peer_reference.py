@@ -18,6 +18,10 @@ nodes), which are vertices of every level. The sags of the finest three C3D4 lev
 Richardson-extrapolated (observed order, GCI with Fs = 1.25); C3D10 at the two finest levels it
 ran is the cross-check (`quadratic_sag_mm`, and `quadratic_change_mm` between its two levels).
 
+With --libfsm-levels, libfsm's own continuum law (element and node-smoothed strains) is settled
+to rest on the same refinements through the Python bindings: a second, independent
+discretisation of the same problem (`libfsm_continuum`).
+
 Writes validation/reference/peer_sag.json. ccx runs single-threaded.
 """
 import argparse
@@ -169,6 +173,53 @@ def solve(spec, level, order, work, ccx, increments, confined=None, reuse=False)
             "nodes": nodes, "tetrahedra": tets, "sag_mm": sag, "seconds": sec}
 
 
+def libfsm_sag(spec, level, smoothing, dt):
+    """libfsm's continuum law (Python bindings) on the mesh refined `level` times, settled to rest
+    under the same load (implicit Euler at dt, drag 5/s, which leaves the equilibrium unchanged)
+    until the sag changes by less than 1e-4 of itself in 0.5 s: an independent discretisation of
+    the same problem, for the cross-check. Returns (sag, steps rolled back on the way)."""
+    try:
+        import fsm
+    except ImportError:
+        sys.path.insert(0, os.path.join(HERE, "..", "build", "python"))
+        import fsm
+    P = np.array(spec["vertices"], dtype=float)
+    T = np.array(spec["tetrahedra"], dtype=np.int64)
+    fixed = [False] * len(P)
+    for i in spec["fixed"]:
+        fixed[i] = True
+    for _ in range(level):
+        P, T, fixed = refine(P, T, fixed)
+    T = oriented(P, T)
+    model = fsm.SphereModel()
+    region = model.add_region("tissue", fsm.Material(
+        density=spec["density"], youngs_modulus=spec["youngs_modulus_pa"],
+        poisson_ratio=spec["poisson_ratio"], viscosity=10.26))
+    fsm.add_tetrahedral_part(model, fsm.TetrahedralMesh(P, T.astype(np.int32)), region,
+                             0.00125 / 2 ** level)
+    for i, f in enumerate(fixed):
+        if f:
+            model.set_fixed(i)
+    model.set_region_law(region, fsm.ForceLaw.continuum)
+    sim = fsm.Simulation(model, gravity=np.array(spec["gravity"], dtype=float), drag=5.0,
+                         strain_smoothing=smoothing)
+    down = np.array(spec["gravity"], dtype=float) / np.linalg.norm(spec["gravity"])
+    meas = spec["measured"]
+    x0 = P[meas]
+    prev, every, rolled_back = None, int(round(0.5 / dt)), 0
+    for k in range(1, int(round(60 / dt))):
+        if not sim.step(dt).advanced:  # rolled back (the state is kept); the next step retries
+            rolled_back += 1
+            if rolled_back > 20:
+                raise RuntimeError(f"libfsm: {rolled_back} steps rolled back at level {level}")
+        if k % every == 0:
+            sag = float(np.mean((np.array(sim.model.positions)[meas] - x0) @ down)) * 1e3
+            if prev is not None and abs(sag - prev) < 1e-4 * abs(sag):
+                return sag, rolled_back
+            prev = sag
+    raise RuntimeError(f"libfsm: level {level} not at rest after 60 s")
+
+
 def richardson(h, f):
     """Three meshes, h[0] > h[1] > h[2] with ratio 2: (extrapolated, GCI uncertainty, order)."""
     e1, e2 = f[1] - f[0], f[2] - f[1]
@@ -240,6 +291,10 @@ def main():
     ap.add_argument("--reuse", action="store_true",
                     help="read the .dat of a run that finished earlier in --work instead of rerunning")
     ap.add_argument("--work", default="/tmp/fsm-peer-fem")
+    ap.add_argument("--libfsm-levels", default="",
+                    help="also settle libfsm's continuum law (element and node-smoothed strains) "
+                    "on these refinement levels, through the Python bindings: the cross-check")
+    ap.add_argument("--libfsm-dt", type=float, default=0.005, help="its time step (s)")
     ap.add_argument("--ccx", default="/usr/bin/ccx")
     ap.add_argument("--out", default=os.path.join(HERE, "reference", "peer_sag.json"))
     a = ap.parse_args()
@@ -279,6 +334,17 @@ def main():
                           "quadratic_change_mm": abs(quad[-1]["sag_mm"] - quad[-2]["sag_mm"])})
             print(f"{spec['name']}: C3D10 levels {quad[-2]['level']}, {quad[-1]['level']}: "
                   f"{quad[-2]['sag_mm']:.4f} -> {quad[-1]['sag_mm']:.4f} mm", flush=True)
+        if a.libfsm_levels:
+            cross = []
+            for smoothing in ("element", "node"):
+                for level in (int(x) for x in a.libfsm_levels.split(",") if x):
+                    t0 = time.time()
+                    sag, rolled_back = libfsm_sag(spec, level, smoothing, a.libfsm_dt)
+                    cross.append({"level": level, "strain_smoothing": smoothing, "sag_mm": sag,
+                                  "rolled_back_steps": rolled_back,
+                                  "seconds": round(time.time() - t0, 1)})
+                    print(spec["name"], "libfsm", cross[-1], flush=True)
+            entry["libfsm_continuum"] = cross
         result[spec["name"]] = entry
         with open(a.out, "w") as f:
             json.dump(result, f, indent=1)
