@@ -242,6 +242,19 @@ def main():
     tables(rows)
 
 
+def law_table(here, cols, cell):
+    """The markdown rows of a per-radius table: one row per radius (largest first), the nodes, and
+    cell(run) for every law in cols ("-" where it has no run)."""
+    out = ["| r (mm) | nodes | " + " | ".join(STYLE[c][2] for c in cols) + " |",
+           "| --- | --- | " + " | ".join("---" for _ in cols) + " |"]
+    for r in sorted({x["radius_mm"] for x in here}, reverse=True):
+        at = {x["law"]: x for x in here if x["radius_mm"] == r}
+        nodes = next((str(at[c]["spheres"]) for c in cols if c in at), "")
+        out.append(f"| {r:g} | {nodes} | " + " | ".join(cell(at[c]) if c in at else "-"
+                                                         for c in cols) + " |")
+    return out
+
+
 def tables(rows):
     """validation/results/continuum_tables.md: per study, the largest displacement difference
     (mm) of every law at every radius, with the force at 1.25 mm against the reference's and, for
@@ -257,25 +270,15 @@ def tables(rows):
         out += [f"**{case}, nu = {nu:g}** (largest displacement difference, mm; in brackets the "
                 "force at 1.25 mm against the reference's" +
                 ("; then the largest force error from 0.5 to 2.5 mm" if case == "sphere" else "")
-                + ")", "",
-                "| r (mm) | nodes | " + " | ".join(STYLE[c][2] for c in cols) + " |",
-                "| --- | --- | " + " | ".join("---" for _ in cols) + " |"]
-        for r in sorted({x["radius_mm"] for x in here}, reverse=True):
-            cells, nodes = [], ""
-            for c in cols:
-                x = [y for y in here if y["radius_mm"] == r and y["law"] == c]
-                if not x:
-                    cells.append("-")
-                    continue
-                x = x[0]
-                nodes = nodes or str(x["spheres"])
-                rel = x["force_1p25_N"] / x["reference_1p25_N"] - 1
-                cell = f"{x['max_disp_diff_mm']:.3f} ({100 * rel:+.0f} %)"
-                if case == "sphere":
-                    cell += f", {100 * x['max_rel_force_error_0p5_2p5']:.1f} %"
-                cells.append(cell)
-            out.append(f"| {r:g} | {nodes} | " + " | ".join(cells) + " |")
-        out.append("")
+                + ")", ""]
+
+        def cell(x, case=case):
+            rel = x["force_1p25_N"] / x["reference_1p25_N"] - 1
+            text = f"{x['max_disp_diff_mm']:.3f} ({100 * rel:+.0f} %)"
+            if case == "sphere":
+                text += f", {100 * x['max_rel_force_error_0p5_2p5']:.1f} %"
+            return text
+        out += law_table(here, cols, cell) + [""]
     # Compression against the graded family's reference (where it exists).
     graded = [x for x in ok if "graded_max_disp_diff_mm" in x]
     if graded:
@@ -287,21 +290,9 @@ def tables(rows):
         for nu in sorted({x["nu"] for x in graded}, reverse=True):
             here = [x for x in graded if x["nu"] == nu]
             to = here[0]["graded_to_mm"]
-            out += [f"nu = {nu:g}, to {to:g} mm:", "",
-                    "| r (mm) | nodes | " + " | ".join(STYLE[c][2] for c in cols) + " |",
-                    "| --- | --- | " + " | ".join("---" for _ in cols) + " |"]
-            for r in sorted({x["radius_mm"] for x in here}, reverse=True):
-                cells, nodes = [], ""
-                for c in cols:
-                    x = [y for y in here if y["radius_mm"] == r and y["law"] == c]
-                    if not x:
-                        cells.append("-")
-                        continue
-                    nodes = nodes or str(x[0]["spheres"])
-                    cells.append(f"{x[0]['graded_max_disp_diff_mm']:.3f} "
-                                 f"({x[0]['uniform_same_range_max_disp_diff_mm']:.3f})")
-                out.append(f"| {r:g} | {nodes} | " + " | ".join(cells) + " |")
-            out.append("")
+            out += [f"nu = {nu:g}, to {to:g} mm:", ""] + law_table(
+                here, cols, lambda x: f"{x['graded_max_disp_diff_mm']:.3f} "
+                                      f"({x['uniform_same_range_max_disp_diff_mm']:.3f})") + [""]
     # The strain smoothings side by side at the two finest spacings.
     smooth = ("continuum", "continuum/face", "continuum/node")
     out += ["**The deviatoric strain per element, face-smoothed and node-smoothed** (largest "

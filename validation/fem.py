@@ -43,6 +43,53 @@ def _limit_memory():
     resource.setrlimit(resource.RLIMIT_AS, (lim, lim))
 
 
+def run_ccx(work, job, ccx="/usr/bin/ccx", threads=1):
+    """ccx on work/job.inp with `threads` threads and the memory cap: the CompletedProcess."""
+    env = dict(os.environ, OMP_NUM_THREADS=str(threads), CCX_NPROC_EQUATION_SOLVER=str(threads))
+    return subprocess.run([ccx, "-i", job], cwd=work, env=env, capture_output=True, text=True,
+                          preexec_fn=_limit_memory)
+
+
+def oriented_tets(P, T):
+    """T (a copy) with every negatively oriented tetrahedron's corners 1 and 2 swapped; a
+    degenerate tetrahedron (volume 0 to 1e-15 of the largest) is a ValueError."""
+    T = np.array(T, dtype=np.int64)
+    vol = np.einsum("ij,ij->i", np.cross(P[T[:, 1]] - P[T[:, 0]], P[T[:, 2]] - P[T[:, 0]]),
+                    P[T[:, 3]] - P[T[:, 0]])
+    flat = np.abs(vol) <= 1e-15 * np.max(np.abs(vol))
+    if np.any(flat):
+        raise ValueError(f"{int(np.sum(flat))} degenerate tetrahedra")
+    T[vol < 0] = T[vol < 0][:, [0, 2, 1, 3]]
+    return T
+
+
+def write_nset(f, name, ids):
+    """*NSET card of 1-based node ids, 16 per line."""
+    f.write(f"*NSET, NSET={name}\n")
+    for a in range(0, len(ids), 16):
+        f.write(", ".join(map(str, ids[a:a + 16])) + ",\n")
+
+
+def write_tet_cards(f, P, T, etype, digits=9):
+    """*NODE (set NALL) and *ELEMENT (set EALL) cards of nodes P (mm) and 0-based elements T."""
+    f.write("*NODE, NSET=NALL\n")
+    for i, (x, y, z) in enumerate(P, 1):
+        f.write(f"{i}, {x:.{digits}g}, {y:.{digits}g}, {z:.{digits}g}\n")
+    f.write(f"*ELEMENT, TYPE={etype}, ELSET=EALL\n")
+    for e, t in enumerate(T, 1):
+        f.write(f"{e}, " + ", ".join(str(int(v) + 1) for v in t) + "\n")
+
+
+def write_neo_hooke(f, E_pa, nu, density_kg_m3=None):
+    """The material TISSUE (CalculiX NEO HOOKE from E and nu; *DENSITY in t/mm^3 if given) and
+    the solid section of EALL."""
+    c10, d1 = neo_hooke_constants(E_pa, nu)
+    f.write(f"*MATERIAL, NAME=TISSUE\n*HYPERELASTIC, NEO HOOKE\n{c10:.9g}, {d1:.9g}\n")
+    if density_kg_m3 is not None:
+        f.write(f"*DENSITY\n{density_kg_m3 * 1e-12:.9g}\n")
+    f.write("*SOLID SECTION, ELSET=EALL, MATERIAL=TISSUE\n")
+
+
 def neo_hooke_constants(E_pa, nu):
     """C10 and D1 (MPa units) of CalculiX's NEO HOOKE for Young's modulus E (Pa), Poisson nu."""
     E = E_pa * 1e-6
@@ -126,7 +173,6 @@ def write_inp(path, case, n, E_pa, nu, depth=DEPTH, samples=SAMPLES, solver=None
                if i * hx / 2 <= PUNCH / 2 + tol and j * hy / 2 <= PUNCH / 2 + tol]
     else:
         raise ValueError(case)
-    c10, d1 = neo_hooke_constants(E_pa, nu)
     with open(path, "w") as f:
         f.write(f"** libfsm validation: {case}, {nx}x{ny}x{nz} C3D20R"
                 f"{' graded toward the bonded edges' if graded_edges else ''}, E={E_pa} Pa, nu={nu}\n")
@@ -136,12 +182,8 @@ def write_inp(path, case, n, E_pa, nu, depth=DEPTH, samples=SAMPLES, solver=None
             # at most 16 entries per line
             f.write(f"{e}, " + ", ".join(map(str, conn[:15])) + ",\n" + ", ".join(map(str, conn[15:])) + "\n")
         for name, s in (("BOTTOM", bottom), ("TOP", top), ("SYMX", sym_x), ("SYMY", sym_y)):
-            f.write(f"*NSET, NSET={name}\n")
-            for a in range(0, len(s), 16):
-                f.write(", ".join(map(str, s[a:a + 16])) + ",\n")
-        f.write("*MATERIAL, NAME=TISSUE\n*HYPERELASTIC, NEO HOOKE\n")
-        f.write(f"{c10:.9g}, {d1:.9g}\n")
-        f.write("*SOLID SECTION, ELSET=EALL, MATERIAL=TISSUE\n")
+            write_nset(f, name, s)
+        write_neo_hooke(f, E_pa, nu)
         f.write("*BOUNDARY\nBOTTOM, 1, 3, 0.\nTOP, 1, 2, 0.\nSYMX, 1, 1, 0.\nSYMY, 2, 2, 0.\n")
         f.write(step_cards(samples, solver))
         f.write(f"*BOUNDARY\nTOP, 3, 3, {-depth:.9g}\n")
@@ -182,12 +224,10 @@ def run(workdir, case, n, E_pa, nu, depth=DEPTH, samples=SAMPLES, ccx="/usr/bin/
     os.makedirs(workdir, exist_ok=True)
     job = f"{case}_n{n}_nu{nu:g}".replace(".", "p")
     inp = os.path.join(workdir, job + ".inp")
-    env = dict(os.environ, OMP_NUM_THREADS=str(threads), CCX_NPROC_EQUATION_SOLVER=str(threads))
     errors = []
     for k in refine:
         write_inp(inp, case, n, E_pa, nu, depth, samples * k, solver)
-        r = subprocess.run([ccx, "-i", job], cwd=workdir, env=env, capture_output=True, text=True,
-                           preexec_fn=_limit_memory)
+        r = run_ccx(workdir, job, ccx, threads)
         t, fz = parse_dat(os.path.join(workdir, job + ".dat"))
         if r.returncode == 0 and len(t) == samples * k and abs(t[-1] - 1.0) < 1e-6:
             break
@@ -378,7 +418,6 @@ def write_contact_inp(path, case, n, E_pa, nu, depth=DEPTH, samples=10, beta=GRA
     sym_x = [v for (i, j, k), v in ids.items() if i == 0]
     sym_y = [v for (i, j, k), v in ids.items() if j == 0]
     top_all = [v for (i, j, k), v in ids.items() if k == 2 * n]
-    c10, d1 = neo_hooke_constants(E_pa, nu)
     with open(path, "w") as f:
         f.write(f"** libfsm validation: {case} contact, {n}x{n}x{n} C3D20R graded beta={beta}, "
                 f"E={E_pa} Pa, nu={nu}, penalty {penalty} MPa/mm\n")
@@ -392,18 +431,14 @@ def write_contact_inp(path, case, n, E_pa, nu, depth=DEPTH, samples=10, beta=GRA
             f.write(f"{e}, " + ", ".join(map(str, conn[:15])) + ",\n" + ", ".join(map(str, conn[15:])) + "\n")
         f.write("*ELEMENT, TYPE=C3D8, ELSET=EIND\n" + "\n".join(ind_elems) + "\n")
         for name, s in (("BOTTOM", bottom), ("TOPALL", top_all), ("SYMX", sym_x), ("SYMY", sym_y)):
-            f.write(f"*NSET, NSET={name}\n")
-            for a in range(0, len(s), 16):
-                f.write(", ".join(map(str, s[a:a + 16])) + ",\n")
+            write_nset(f, name, s)
         # top faces of the top layer of elements (face S2 = nodes 5-8 of C3D20R)
         top_elems = [e for e in range(1, len(elems) + 1) if (e - 1) // (n * n) == n - 1]
         f.write("*SURFACE, NAME=SSLAVE, TYPE=ELEMENT\n")
         f.write("".join(f"{e}, S2\n" for e in top_elems))
         f.write("*SURFACE, NAME=SMASTER, TYPE=ELEMENT\n")
         f.write("".join(f"{e}, S1\n" for e in ind_eids))
-        f.write("*MATERIAL, NAME=TISSUE\n*HYPERELASTIC, NEO HOOKE\n")
-        f.write(f"{c10:.9g}, {d1:.9g}\n")
-        f.write("*SOLID SECTION, ELSET=EALL, MATERIAL=TISSUE\n")
+        write_neo_hooke(f, E_pa, nu)
         # the indenter: any material (all its nodes are prescribed)
         f.write("*MATERIAL, NAME=RIGID\n*ELASTIC\n1000., 0.3\n")
         f.write("*SOLID SECTION, ELSET=EIND, MATERIAL=RIGID\n")
@@ -480,22 +515,17 @@ def run_contact(workdir, case, n, E_pa, nu, depth=DEPTH, samples=10, ccx="/usr/b
     os.makedirs(workdir, exist_ok=True)
     job = f"{case}_n{n}_nu{nu:g}".replace(".", "p")
     inp = os.path.join(workdir, job + ".inp")
-    env = dict(os.environ, OMP_NUM_THREADS=str(threads), CCX_NPROC_EQUATION_SOLVER=str(threads))
     errors = []
     for k in refine:
         _, _, coords, _ = write_contact_inp(inp, case, n, E_pa, nu, depth, samples * k, **kw)
-        r = subprocess.run([ccx, "-i", job], cwd=workdir, env=env, capture_output=True, text=True,
-                           preexec_fn=_limit_memory)
+        r = run_ccx(workdir, job, ccx, threads)
         dat = os.path.join(workdir, job + ".dat")
         t, fz = parse_dat_set(dat, "IND")
         if r.returncode == 0 and len(t) == samples * k and abs(t[-1] - 1.0) < 1e-6:
             break
         errors.append(f"{samples * k} increments: rc {r.returncode}, {len(t)} done\n" + r.stdout[-1500:])
     else:
-        if not keep_partial or len(t) < k:
-            raise RuntimeError(f"ccx failed on {job}:\n" + "\n".join(errors))
-        run.partial = True
-        t, fz = t[:len(t) - len(t) % k], fz[:len(t) - len(t) % k]
+        raise RuntimeError(f"ccx failed on {job}:\n" + "\n".join(errors))
     us = parse_dat_u(dat, "TOPALL")
     t, fz = t[k - 1::k], fz[k - 1::k]
     pen = [0.0] + [penetration(case, coords, us[ti], ti * depth) for ti in t]
@@ -536,12 +566,7 @@ def write_tet_inp(path, case, nodes_mm, tets, nu, E=13150.0, depth=DEPTH, sample
     by `depth`. Tetrahedra with a negative orientation are flipped. `confined` holds every node
     in x and y (uniaxial strain, for the self-check)."""
     P = np.asarray(nodes_mm, dtype=float)
-    T = np.asarray(tets, dtype=np.int64).copy()
-    vol = np.einsum("ij,ij->i", np.cross(P[T[:, 1]] - P[T[:, 0]], P[T[:, 2]] - P[T[:, 0]]),
-                    P[T[:, 3]] - P[T[:, 0]])
-    if np.any(vol == 0):
-        raise ValueError(f"{int(np.sum(vol == 0))} degenerate tetrahedra")
-    T[vol < 0] = T[vol < 0][:, [0, 2, 1, 3]]
+    T = oriented_tets(P, tets)
     if order == 2:
         P, T = quadratic_tets(P, T)
     elif order != 1:
@@ -561,23 +586,13 @@ def write_tet_inp(path, case, nodes_mm, tets, nu, E=13150.0, depth=DEPTH, sample
     if len(tool) == 0:
         raise ValueError(f"{case}: no tool nodes on the top face (z = {zmax:g} mm)")
     tool = tool + 1
-    c10, d1 = neo_hooke_constants(E, nu)
     with open(path, "w") as f:
         f.write(f"** libfsm validation: {case}, {etype} on a given mesh ({len(P)} nodes, {len(T)} tets), "
                 f"E={E} Pa, nu={nu}\n")
-        f.write("*NODE, NSET=NALL\n")
-        for i, (x, y, z) in enumerate(P, 1):
-            f.write(f"{i}, {x:.9g}, {y:.9g}, {z:.9g}\n")
-        f.write(f"*ELEMENT, TYPE={etype}, ELSET=EALL\n")
-        for e, t in enumerate(T, 1):
-            f.write(f"{e}, " + ", ".join(str(int(v) + 1) for v in t) + "\n")
+        write_tet_cards(f, P, T, etype)
         for name, sel in (("BOTTOM", bottom), ("TOP", tool)):
-            f.write(f"*NSET, NSET={name}\n")
-            for a in range(0, len(sel), 16):
-                f.write(", ".join(map(str, sel[a:a + 16])) + ",\n")
-        f.write("*MATERIAL, NAME=TISSUE\n*HYPERELASTIC, NEO HOOKE\n")
-        f.write(f"{c10:.9g}, {d1:.9g}\n")
-        f.write("*SOLID SECTION, ELSET=EALL, MATERIAL=TISSUE\n")
+            write_nset(f, name, sel)
+        write_neo_hooke(f, E, nu)
         f.write("*BOUNDARY\nBOTTOM, 1, 3, 0.\nTOP, 1, 2, 0.\n")
         if confined:
             f.write("NALL, 1, 2, 0.\n")
@@ -597,9 +612,7 @@ def run_tet_mesh(work, case, nodes_mm, tets, nu, E=13150.0, depth=DEPTH, samples
     job = job or f"tet{order}_{case}_nu{nu:g}".replace(".", "p")
     write_tet_inp(os.path.join(work, job + ".inp"), case, nodes_mm, tets, nu, E, depth, samples,
                   order, confined)
-    env = dict(os.environ, OMP_NUM_THREADS=str(threads), CCX_NPROC_EQUATION_SOLVER=str(threads))
-    r = subprocess.run([ccx, "-i", job], cwd=work, env=env, capture_output=True, text=True,
-                       preexec_fn=_limit_memory)
+    r = run_ccx(work, job, ccx, threads)
     t, fz = parse_dat(os.path.join(work, job + ".dat"))
     if r.returncode != 0 or len(t) == 0 or abs(t[-1] - 1.0) > 1e-6:
         raise RuntimeError(f"ccx failed on {job}: rc {r.returncode}, {len(t)} increments\n"

@@ -95,7 +95,7 @@ def run_one(a, case, nu, n):
     if case in BONDED:
         d, F = fem.run(a.work, case, n, E_NEO, nu, samples=incs, solver=solver, ccx=a.ccx,
                        refine=(1,) if a.keep_partial else (1, 2, 3), keep_partial=a.keep_partial)
-        incs *= fem.run.last_refine if not fem.run.partial else 1
+        incs *= fem.run.last_refine
         pen = pen_rel = None
     else:
         d, F, p, k = fem.run_contact(a.work, case, n, E_NEO, nu, samples=incs, solver=solver,

@@ -28,7 +28,6 @@ import argparse
 import json
 import os
 import re
-import subprocess
 import sys
 import time
 
@@ -65,20 +64,21 @@ def refine(P, T, fixed):
     return np.vstack([P, np.array(extra)]), np.array(out, dtype=np.int64), fx
 
 
-def oriented(P, T):
-    T = T.copy()
-    vol = np.einsum("ij,ij->i", np.cross(P[T[:, 1]] - P[T[:, 0]], P[T[:, 2]] - P[T[:, 0]]),
-                    P[T[:, 3]] - P[T[:, 0]])
-    if np.any(np.abs(vol) < 1e-15 * np.max(np.abs(vol))):
-        raise ValueError("degenerate tetrahedra")
-    T[vol < 0] = T[vol < 0][:, [0, 2, 1, 3]]
-    return T
+def refined(spec, level):
+    """The spec's mesh (vertices in m, tetrahedra oriented, fixed flags) refined `level` times."""
+    P = np.array(spec["vertices"], dtype=float)
+    T = np.array(spec["tetrahedra"], dtype=np.int64)
+    fixed = [False] * len(P)
+    for i in spec["fixed"]:
+        fixed[i] = True
+    for _ in range(level):
+        P, T, fixed = refine(P, T, fixed)
+    return P, fem.oriented_tets(P, T), fixed
 
 
 def write_inp(path, P, T, fixed, measured, spec, order, increments, confined=None):
     """P in mm; gravity on the density (t/mm^3, mm/s^2: forces in N). `confined` (an axis,
     0-2) holds every node in the two other directions (the self-check's uniaxial strain)."""
-    T = oriented(P, T)
     if order == 2:
         n_lin = len(P)
         P, T = fem.quadratic_tets(P, T)
@@ -89,26 +89,15 @@ def write_inp(path, P, T, fixed, measured, spec, order, increments, confined=Non
                 if fixed[t[a]] and fixed[t[b]]:
                     fixed[t[4 + k]] = True
     etype = "C3D4" if order == 1 else "C3D10"
-    c10, d1 = fem.neo_hooke_constants(spec["youngs_modulus_pa"], spec["poisson_ratio"])
-    rho = spec["density"] * 1e-12  # kg/m^3 -> t/mm^3
     g = np.array(spec["gravity"], dtype=float) * 1e3  # m/s^2 -> mm/s^2
     gn = float(np.linalg.norm(g))
     fixed_ids = np.nonzero(np.array(fixed))[0] + 1
     with open(path, "w") as f:
         f.write(f"** libfsm peer reference: {spec['name']}, {etype}, {len(P)} nodes, {len(T)} tets\n")
-        f.write("*NODE, NSET=NALL\n")
-        for i, (x, y, z) in enumerate(P, 1):
-            f.write(f"{i}, {x:.10g}, {y:.10g}, {z:.10g}\n")
-        f.write(f"*ELEMENT, TYPE={etype}, ELSET=EALL\n")
-        for e, t in enumerate(T, 1):
-            f.write(f"{e}, " + ", ".join(str(int(v) + 1) for v in t) + "\n")
-        for name, sel in (("FIXED", fixed_ids), ("MEASURED", np.array(measured) + 1)):
-            f.write(f"*NSET, NSET={name}\n")
-            for a in range(0, len(sel), 16):
-                f.write(", ".join(map(str, sel[a:a + 16])) + ",\n")
-        f.write("*MATERIAL, NAME=TISSUE\n*HYPERELASTIC, NEO HOOKE\n")
-        f.write(f"{c10:.9g}, {d1:.9g}\n*DENSITY\n{rho:.9g}\n")
-        f.write("*SOLID SECTION, ELSET=EALL, MATERIAL=TISSUE\n")
+        fem.write_tet_cards(f, P, T, etype, digits=10)
+        fem.write_nset(f, "FIXED", fixed_ids)
+        fem.write_nset(f, "MEASURED", np.array(measured) + 1)
+        fem.write_neo_hooke(f, spec["youngs_modulus_pa"], spec["poisson_ratio"], spec["density"])
         f.write("*BOUNDARY\nFIXED, 1, 3, 0.\n")
         if confined is not None:
             for dof in sorted({0, 1, 2} - {confined}):
@@ -143,13 +132,8 @@ def parse_u(path):
 def solve(spec, level, order, work, ccx, increments, confined=None, reuse=False):
     """One CalculiX run (or, with `reuse`, the .dat a finished earlier run of the same job left in
     `work`): the sag and the run's size and wall time (None when reused)."""
-    P = np.array(spec["vertices"], dtype=float) * 1e3  # m -> mm
-    T = np.array(spec["tetrahedra"], dtype=np.int64)
-    fixed = [False] * len(P)
-    for i in spec["fixed"]:
-        fixed[i] = True
-    for _ in range(level):
-        P, T, fixed = refine(P, T, fixed)
+    P, T, fixed = refined(spec, level)
+    P = P * 1e3  # m -> mm
     job = f"{spec['name']}_l{level}_o{order}"
     nodes, tets = write_inp(os.path.join(work, job + ".inp"), P, T, fixed, spec["measured"], spec,
                             order, increments, confined)
@@ -158,9 +142,7 @@ def solve(spec, level, order, work, ccx, increments, confined=None, reuse=False)
     sec = None
     if t is None or abs(t - 1.0) > 1e-6 or len(u) != len(spec["measured"]):
         t0 = time.time()
-        r = subprocess.run([ccx, "-i", job], cwd=work, capture_output=True, text=True,
-                           env=dict(os.environ, OMP_NUM_THREADS="1", CCX_NPROC_EQUATION_SOLVER="1"),
-                           preexec_fn=fem._limit_memory)
+        r = fem.run_ccx(work, job, ccx)
         sec = round(time.time() - t0, 1)
         t, u = parse_u(dat)
         if r.returncode != 0 or t is None or abs(t - 1.0) > 1e-6 or len(u) != len(spec["measured"]):
@@ -183,14 +165,7 @@ def libfsm_sag(spec, level, smoothing, dt):
     except ImportError:
         sys.path.insert(0, os.path.join(HERE, "..", "build", "python"))
         import fsm
-    P = np.array(spec["vertices"], dtype=float)
-    T = np.array(spec["tetrahedra"], dtype=np.int64)
-    fixed = [False] * len(P)
-    for i in spec["fixed"]:
-        fixed[i] = True
-    for _ in range(level):
-        P, T, fixed = refine(P, T, fixed)
-    T = oriented(P, T)
+    P, T, fixed = refined(spec, level)
     model = fsm.SphereModel()
     region = model.add_region("tissue", fsm.Material(
         density=spec["density"], youngs_modulus=spec["youngs_modulus_pa"],
