@@ -124,6 +124,68 @@ TEST(Shapes, CylinderSideCapRimAndInside) {
   EXPECT_TRUE(in->normal.isApprox(V3::UnitX(), 1e-12));
 }
 
+TEST(Shapes, RoundedCylinderMatchesTheRoundedProfileDistance) {
+  // The rounded cylinder against the signed distance of its profile, a rectangle [0, R] x [-h, h]
+  // in (rho, z) with corners of radius e: q = (rho - (R - e), |z| - (h - e)),
+  // d = |max(q, 0)| + min(max(q_x, q_y), 0) - e. Depth r - d, normal its gradient (central
+  // differences), point c - d n.
+  const double R = 0.003, h = 0.005, e = 0.001;
+  const Shape<double> cyl = CylinderShape<double>{R, h, e};
+  auto profile = [&](const V3& p) {
+    const double qx = std::hypot(p.x(), p.y()) - (R - e), qz = std::abs(p.z()) - (h - e);
+    return std::hypot(std::max(qx, 0.0), std::max(qz, 0.0)) + std::min(std::max(qx, qz), 0.0) - e;
+  };
+  Pose<double> pose;
+  pose.position = V3(0.01, -0.02, 0.005);
+  pose.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(0.7, V3(1, 2, 3).normalized()));
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-0.008, 0.008);
+  int hits = 0, rims = 0;
+  for (int k = 0; k < 4000; ++k) {
+    const V3 p(u(rng), u(rng), u(rng));
+    const double r = 0.0015, d = profile(p);
+    const auto c = contact(cyl, pose, pose.to_world(p), r);
+    if (d >= r - 1e-12) {
+      EXPECT_FALSE(c && c->depth > 1e-12) << p.transpose();
+      continue;
+    }
+    // Skip the medial surfaces, where the nearest point (and the gradient) is not unique.
+    const double rho = std::hypot(p.x(), p.y());
+    if (d < 0 && (std::abs((R - rho) - (h - std::abs(p.z()))) < 1e-5 || rho < 1e-5)) continue;
+    ASSERT_TRUE(c) << p.transpose();
+    ++hits;
+    if (rho > R - e && std::abs(p.z()) > h - e) ++rims;
+    EXPECT_NEAR(c->depth, r - d, 1e-12) << p.transpose();
+    const double s = 1e-7;
+    V3 g;
+    for (int i = 0; i < 3; ++i)
+      g[i] = (profile(p + s * V3::Unit(i)) - profile(p - s * V3::Unit(i))) / (2 * s);
+    EXPECT_TRUE(c->normal.isApprox(pose.orientation * g.normalized(), 1e-6)) << p.transpose();
+    EXPECT_TRUE(c->point.isApprox(pose.to_world(p) - d * c->normal, 1e-9)) << p.transpose();
+  }
+  EXPECT_GT(hits, 500);
+  EXPECT_GT(rims, 50);  // the rounded rims themselves were sampled
+  // Overall size unchanged; the flat end keeps its disc of radius R - e.
+  auto cap = contact(cyl, Pose<double>{}, V3(R - e, 0, h + 0.0005), 0.001);
+  ASSERT_TRUE(cap);
+  EXPECT_NEAR(cap->depth, 0.0005, 1e-12);
+  EXPECT_TRUE(cap->normal.isApprox(V3::UnitZ(), 1e-12));
+  auto side = contact(cyl, Pose<double>{}, V3(R + 0.0005, 0, 0), 0.001);
+  ASSERT_TRUE(side);
+  EXPECT_NEAR(side->depth, 0.0005, 1e-12);
+  // Zero edge radius is the sharp cylinder.
+  const Shape<double> sharp = CylinderShape<double>{R, h};
+  const Shape<double> zero = CylinderShape<double>{R, h, 0.0};
+  const V3 beyond(0.0035, 0.001, 0.0055);
+  EXPECT_DOUBLE_EQ(contact(sharp, Pose<double>{}, beyond, 0.001)->depth,
+                   contact(zero, Pose<double>{}, beyond, 0.001)->depth);
+  // Too large an edge radius is an error naming the field, and gives no contact.
+  EXPECT_THROW(validate(Shape<double>(CylinderShape<double>{R, h, 0.004}), "tool"), Error);
+  EXPECT_THROW(validate(Shape<double>(CylinderShape<double>{R, h, -1e-4}), "tool"), Error);
+  EXPECT_FALSE(contact(Shape<double>(CylinderShape<double>{R, h, 0.004}), Pose<double>{},
+                       V3(0, 0, 0), 0.001));
+}
+
 TEST(Shapes, HullMatchesExactBoxDistanceInAndOut) {
   const V3 h(0.01, 0.004, 0.002);
   const Shape<double> hull = box_hull(h);

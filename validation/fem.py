@@ -254,16 +254,23 @@ def have_ccx(ccx="/usr/bin/ccx"):
 
 SPHERE_R = 5.0  # mm
 CYLINDER_R = 3.0  # mm
-CONTACT_CASES = ("sphere", "cylinder")
+# rounded_cylinder: the same cylinder with its rim rounded to EDGE_R (a flat end of radius
+# CYLINDER_R - EDGE_R). The sharp rim's contact did not converge in ccx beyond n = 5 (README).
+EDGE_R = 1.0  # mm
+WALL_H = 2.5  # mm of straight side wall above the rounded rim
+CONTACT_CASES = ("sphere", "cylinder", "rounded_cylinder")
 GRADING = 0.5  # x = 10 + 10 (g s + (1 - g) s^2) style grading, see graded()
 # MPa/mm: the pressure-overclosure slope (linear penalty). The cylinder's sharp edge made Newton
 # diverge at 50 on n = 10 (contact status chatter at the rim); 10 keeps its nodal penetration
-# well below 1 % of the displacement (mean pressure ~0.015 MPa -> ~1.5 um at 2.5 mm).
-PENALTY = {"sphere": 50.0, "cylinder": 10.0}
+# well below 1 % of the displacement (mean pressure ~0.015 MPa -> ~1.5 um at 2.5 mm). The rounded
+# cylinder's first increment diverged at 50 on n = 5; at 25 its top nodes penetrate 9 um at most.
+PENALTY = {"sphere": 50.0, "cylinder": 10.0, "rounded_cylinder": 25.0}
 # Cells per side of the indenter's quarter-disc surface mesh, the same on every block mesh (the
 # faceting error must not change with n): sphere 80 deg / 32 cells, chord sagitta 1.2 um; cylinder
 # rim 32 segments per 90 deg, sagitta 0.9 um (the flat end itself is exact).
-INDENTER_CELLS = {"sphere": 32, "cylinder": 16}
+# rounded_cylinder: 48 cells along its 5.07 mm profile (flat end, rim, wall), 0.1-0.15 mm each:
+# a sagitta of at most about 3 um on the rim.
+INDENTER_CELLS = {"sphere": 32, "cylinder": 16, "rounded_cylinder": 48}
 
 
 def graded(s, beta=GRADING):
@@ -318,7 +325,9 @@ def indenter_mesh(case, m, first_node, first_elem, thickness=0.5, wall=False):
     they are rigid) whose face S1 is the indenter's surface, for the quarter x, y >= 10 mm, at rest
     just touching the top (z = 10) at the centre. m: cells per quarter-disc side.
     sphere: the lower quarter hemisphere up to a polar angle of 80 deg (r = 4.92 mm);
-    cylinder: the flat end (r <= 3) and, with wall=True, the side wall up to 2 mm above it.
+    cylinder: the flat end (r <= 3) and, with wall=True, the side wall up to 2 mm above it;
+    rounded_cylinder: the flat end (r <= 2), the rim rounded to 1 mm, and the side wall up to
+    WALL_H above the rim, as one revolved grid (cells equal in profile length).
     Returns (node lines, element lines, element ids, node ids)."""
     pts = []  # surface point, inward point (into the indenter)
     if case == "sphere":
@@ -340,6 +349,33 @@ def indenter_mesh(case, m, first_node, first_elem, thickness=0.5, wall=False):
                 inn = (W / 2 + Ri * np.sin(th) * dx, W / 2 + Ri * np.sin(th) * dy, zc - Ri * np.cos(th))
                 grid[(a, b)] = len(pts)
                 pts.append((out, inn))
+        cells = [((a, b), (a + 1, b), (a + 1, b + 1), (a, b + 1)) for b in range(m) for a in range(m)]
+    elif case == "rounded_cylinder":
+        R, e = CYLINDER_R, EDGE_R
+        flat, arc = R - e, 0.5 * np.pi * e
+        total = flat + arc + WALL_H
+
+        def profile(s):
+            """(r, z) of the surface and of the point `thickness` inside, at profile length s."""
+            if s <= flat:
+                return (s, H), (s, H + thickness)
+            if s <= flat + arc:
+                a = (s - flat) / e  # angle from the downward normal
+                c = (flat, H + e)  # the rim's centre
+                return ((c[0] + e * np.sin(a), c[1] - e * np.cos(a)),
+                        (c[0] + (e - thickness) * np.sin(a), c[1] - (e - thickness) * np.cos(a)))
+            z = H + e + (s - flat - arc)
+            return (R, z), (R - thickness, z)
+
+        grid = {}
+        for b in range(m + 1):
+            for a in range(m + 1):
+                X, Y = _disc(a / m, b / m)
+                rho = np.hypot(X, Y)
+                dx, dy = (X / rho, Y / rho) if rho > 0 else (0.0, 0.0)
+                (ro, zo), (ri, zi) = profile(rho * total)
+                grid[(a, b)] = len(pts)
+                pts.append(((W / 2 + ro * dx, W / 2 + ro * dy, zo), (W / 2 + ri * dx, W / 2 + ri * dy, zi)))
         cells = [((a, b), (a + 1, b), (a + 1, b + 1), (a, b + 1)) for b in range(m) for a in range(m)]
     elif case == "cylinder":
         R = CYLINDER_R
@@ -491,7 +527,8 @@ def parse_dat_u(path, nset):
 
 def penetration(case, coords, u, d):
     """Largest penetration (mm) of the block's top nodes (deformed) into the indenter moved
-    down by d: sphere, R - |p - c|; cylinder, p_z - (10 - d) where r <= R."""
+    down by d: sphere, R - |p - c|; cylinder, p_z - (10 - d) where r <= R; rounded_cylinder,
+    minus the signed distance to its profile (a rectangle with corners rounded to EDGE_R)."""
     worst = 0.0
     for v, (ux, uy, uz) in u.items():
         x, y, z = coords[v]
@@ -499,6 +536,10 @@ def penetration(case, coords, u, d):
         if case == "sphere":
             c = np.array([W / 2, W / 2, H + SPHERE_R - d])
             pen = SPHERE_R - np.linalg.norm(p - c)
+        elif case == "rounded_cylinder":
+            qx = np.hypot(p[0] - W / 2, p[1] - W / 2) - (CYLINDER_R - EDGE_R)
+            qz = (H - d + EDGE_R) - p[2]  # the end face at H - d, the rim's centres above it
+            pen = -(np.hypot(max(qx, 0.0), max(qz, 0.0)) + min(max(qx, qz), 0.0) - EDGE_R)
         else:
             r = np.hypot(p[0] - W / 2, p[1] - W / 2)
             pen = p[2] - (H - d) if r <= CYLINDER_R else 0.0

@@ -2,7 +2,8 @@
 // the library's own builder from a scene, for the validation against a reference FEM
 // (docs/validation.md).
 //
-//   fsm-indent SCENE.json --case compression|punch|sphere|cylinder [--law links|continuum]
+//   fsm-indent SCENE.json --case compression|punch|sphere|cylinder|rounded_cylinder
+//              [--law links|continuum]
 //              [--nu NU] [--smoothing element|face|edge|node] [--element-share A] [--depth MM]
 //              [--speed MM_PER_MIN] [--samples N] [--dt S]
 //              [--integrator NAME] [--stiffness-scale F] [--poisson NU | --kappa PA]
@@ -14,8 +15,9 @@
 //   platen over the whole top), "punch" = the top spheres within 2 mm of the top's centre in x and
 //   y (a 4 x 4 mm flat punch);
 // - through contact (ContactSolver, frictionless, as a user's instrument): "sphere" = a rigid ball
-//   of radius 5 mm, "cylinder" = a rigid flat-ended cylinder of radius 3 mm (axis z), both over
-//   the top's centre and touching the top at the start.
+//   of radius 5 mm, "cylinder" = a rigid flat-ended cylinder of radius 3 mm (axis z),
+//   "rounded_cylinder" = the same cylinder with its rim rounded to 1 mm (a flat end of radius
+//   2 mm), each over the top's centre and touching the top at the start.
 // --law continuum gives the part the continuum law (neo-Hookean tetrahedra) with Poisson's ratio
 // --nu (default 0.49); --law links (the default) keeps the paper's link network, optionally with
 // the volume term (--poisson / --kappa). The force on the tool (bonded: the z-sum of the internal
@@ -77,7 +79,7 @@ Args parse(int argc, char** argv) {
   double depth_mm = a.depth * 1e3, speed_mm_min = a.speed * 1e3 * 60;
   app.add_option("scene", a.scene, "a one-part scene (JSON)")->required();
   app.add_option("--case", a.load_case, "the load")
-      ->check(CLI::IsMember({"compression", "punch", "sphere", "cylinder"}))
+      ->check(CLI::IsMember({"compression", "punch", "sphere", "cylinder", "rounded_cylinder"}))
       ->capture_default_str();
   app.add_option("--contact", a.contact,
                  "contact cases: the block meets the tool at its vertices or at sample points on "
@@ -150,7 +152,8 @@ int run(const Args& a) {
   TissueModel<double> tissue = build::build_model(a.scene, &report);
   SphereModel<double>& model = tissue.spheres;
   const Index n = model.num_nodes();
-  const bool contact = a.load_case == "sphere" || a.load_case == "cylinder";
+  const bool contact =
+      a.load_case == "sphere" || a.load_case == "cylinder" || a.load_case == "rounded_cylinder";
   if (a.law == "continuum") {
     // E as the scene gives it, nu as asked: the law takes them as they are (no factor).
     Material<double> m = model.region(0).material;
@@ -221,8 +224,9 @@ int run(const Args& a) {
   const double half_length = 5e-3;  // cylinder: 10 mm long, its flat end on the top at the start
   if (a.load_case == "sphere")
     tool.shape = collision::SphereShape<double>{radius};
-  else
-    tool.shape = collision::CylinderShape<double>{radius, half_length};
+  else  // rounded_cylinder: the same with 1 mm rims (validation/fem.py, EDGE_R)
+    tool.shape = collision::CylinderShape<double>{radius, half_length,
+                                                  a.load_case == "rounded_cylinder" ? 1e-3 : 0.0};
   const double start_z = zmax + (a.load_case == "sphere" ? radius : half_length);
   tool.pose.position = Vector3<double>(cx, cy, start_z);
   tool.linear_velocity = Vector3<double>(0, 0, -a.speed);

@@ -91,17 +91,22 @@ negative or non-finite size.)")
   py::class_<fc::CylinderShape<Scalar>>(m, "CylinderShape",
                                         R"(A solid cylinder with flat ends (a flat punch).
 
-CylinderShape(radius, half_length): radius (m) about local z, from z = -half_length to
-+half_length (m). Raises fsm.Error for a negative or non-finite size.)")
-      .def(py::init([](Scalar radius, Scalar half_length) {
-             return validated(fc::CylinderShape<Scalar>{radius, half_length}, "CylinderShape");
+CylinderShape(radius, half_length, edge_radius=0): radius (m) about local z, from
+z = -half_length to +half_length (m); edge_radius (m) rounds the rims without changing the overall
+size (each flat end keeps a disc of radius radius - edge_radius). Raises fsm.Error for a negative
+or non-finite size, or an edge radius above the radius or the half length.)")
+      .def(py::init([](Scalar radius, Scalar half_length, Scalar edge_radius) {
+             return validated(fc::CylinderShape<Scalar>{radius, half_length, edge_radius},
+                              "CylinderShape");
            }),
-           py::arg("radius"), py::arg("half_length"))
+           py::arg("radius"), py::arg("half_length"), py::arg("edge_radius") = Scalar(0))
       .def_readwrite("radius", &fc::CylinderShape<Scalar>::radius, "m")
       .def_readwrite("half_length", &fc::CylinderShape<Scalar>::half_length, "m")
+      .def_readwrite("edge_radius", &fc::CylinderShape<Scalar>::edge_radius, "m")
       .def("__repr__", [](const fc::CylinderShape<Scalar>& s) {
         return "CylinderShape(radius=" + std::to_string(s.radius) +
-               ", half_length=" + std::to_string(s.half_length) + ")";
+               ", half_length=" + std::to_string(s.half_length) +
+               ", edge_radius=" + std::to_string(s.edge_radius) + ")";
       });
 
   using Hull = fc::ConvexHullShape<Scalar>;

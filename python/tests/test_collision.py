@@ -129,6 +129,9 @@ def test_bad_shapes_poses_and_options_raise_fsm_error(block):
         fsm.CapsuleShape(0.001, float("nan"))
     with pytest.raises(fsm.Error, match="CylinderShape"):
         fsm.CylinderShape(float("inf"), 0.01)
+    with pytest.raises(fsm.Error, match="edge_radius"):
+        fsm.CylinderShape(0.003, 0.01, edge_radius=0.004)  # larger than the radius
+    assert fsm.CylinderShape(0.003, 0.01, edge_radius=0.001).edge_radius == 0.001
     with pytest.raises(fsm.Error, match="ConvexHullShape"):
         fsm.ConvexHullShape(np.eye(3))  # three points
     with pytest.raises(fsm.Error, match="ConvexHullShape"):

@@ -40,11 +40,15 @@ struct CapsuleShape {
 };
 
 /// @brief A solid cylinder of `radius` along local z from -half_length to +half_length (m), flat
-/// ends.
+/// ends. `edge_radius` (m, 0 = sharp) rounds the rims: the shape is then the points within
+/// `edge_radius` of the cylinder of radius `radius - edge_radius` and half length
+/// `half_length - edge_radius`, so its overall size does not change and each flat end keeps a disc
+/// of radius `radius - edge_radius`. At most min(radius, half_length).
 template <typename Scalar>
 struct CylinderShape {
   Scalar radius{0};
   Scalar half_length{0};
+  Scalar edge_radius{0};
 };
 
 /// @brief The convex hull of points given in the local frame (m), e.g. a grasper's jaw.

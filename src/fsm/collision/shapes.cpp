@@ -140,6 +140,12 @@ void validate(const Shape<Scalar>& shape, const std::string& what) {
           [&](const CylinderShape<Scalar>& s) {
             check_size(s.radius, "cylinder", "radius", what);
             check_size(s.half_length, "cylinder", "half_length", what);
+            check_size(s.edge_radius, "cylinder", "edge_radius", what);
+            if (s.edge_radius > std::min(s.radius, s.half_length))
+              throw Error(std::string(), what,
+                          "cylinder edge_radius is " + str(s.edge_radius) +
+                              " m; it must be at most the radius (" + str(s.radius) +
+                              " m) and the half length (" + str(s.half_length) + " m)");
           },
           [&](const ConvexHullShape<Scalar>& s) {
             const auto& p = s.points;
@@ -261,11 +267,18 @@ std::optional<ShapeContact<Scalar>> contact(const Shape<Scalar>& shape, const Po
                    return finish(capsule_local(s.radius, s.half_length, p, scale));
                  },
                  [&](const CylinderShape<Scalar>& s) -> std::optional<ShapeContact<Scalar>> {
-                   if (!finite(s.radius) || !finite(s.half_length) || s.radius < Scalar(0) ||
-                       s.half_length < Scalar(0))
+                   const Scalar e = s.edge_radius;
+                   if (!finite(s.radius) || !finite(s.half_length) || !finite(e) ||
+                       s.radius < Scalar(0) || s.half_length < Scalar(0) || e < Scalar(0) ||
+                       e > std::min(s.radius, s.half_length))
                      return std::nullopt;
                    const Scalar scale = std::max({coord_scale, s.radius, s.half_length});
-                   return finish(cylinder_local(s.radius, s.half_length, p, scale));
+                   // A rounded rim: the inner cylinder's distance less the edge radius (the
+                   // points within e of it), its nearest point pushed out by e along the normal.
+                   auto local = cylinder_local(s.radius - e, s.half_length - e, p, scale);
+                   local.signed_distance -= e;
+                   local.point += e * local.normal;
+                   return finish(local);
                  },
                  [&](const ConvexHullShape<Scalar>& s) -> std::optional<ShapeContact<Scalar>> {
                    const auto local = detail::hull_local(s, p, r);
