@@ -9,9 +9,10 @@
 //   bench_model_step MODEL.fsm [--law links|continuum] [--threads N] [--tolerance TOL]
 //                    [--steps N] [--no-probe] [--continuum-part NAME]
 //                    [--element-tangent-quality Q] [--smoothing element|face|edge|node]
-//                    [--gravity-y] [--no-simd] [--json]
+//                    [--gravity-y] [--no-simd] [--detection-margin F] [--json]
 // --gravity-y: gravity along -y (the Visible Human data set's down) instead of -z.
 // --no-simd: the scalar link loops (ForceModel::Options::simd = false).
+// --detection-margin: collision::ContactOptions::detection_margin (0: penetrating spheres only).
 //
 // --law continuum puts every tetrahedral part on the continuum law, or only NAME with
 // --continuum-part.
@@ -36,6 +37,7 @@ int main(int argc, char** argv) {
   int threads = 1, steps = 2000;
   double tolerance = 1e-3;
   double element_tangent_quality = ForceModel<double>::Options{}.element_tangent_quality;
+  double detection_margin = collision::ContactOptions<double>{}.detection_margin;
   bool probe = true, json = false, gravity_y = false, simd = true;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -66,6 +68,8 @@ int main(int argc, char** argv) {
       probe = false;
     else if (a == "--no-simd")
       simd = false;
+    else if (a == "--detection-margin")
+      detection_margin = std::atof(value().c_str());
     else if (a == "--json")
       json = true;
     else if (!a.empty() && a[0] != '-' && path.empty())
@@ -76,7 +80,7 @@ int main(int argc, char** argv) {
           "usage: %s MODEL.fsm [--law links|continuum] [--threads N] [--tolerance TOL] "
           "[--steps N] [--no-probe] [--continuum-part NAME] "
           "[--element-tangent-quality Q] [--smoothing element|face|edge|node] [--gravity-y] "
-          "[--no-simd] [--json]\n",
+          "[--no-simd] [--detection-margin F] [--json]\n",
           argv[0]);
       return 2;
     }
@@ -117,7 +121,9 @@ int main(int argc, char** argv) {
     ImplicitEulerIntegrator<double>::Options io;
     io.tolerance = tolerance;
     sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
-    collision::ContactSolver<double> contacts(sim.model(), sim.forces());
+    collision::ContactOptions<double> contact_options;
+    contact_options.detection_margin = detection_margin;
+    collision::ContactSolver<double> contacts(sim.model(), sim.forces(), contact_options);
     support::CapsuleProbe cp{support::outermost_free_sphere(model.spheres, *target)};
     contacts.add_instrument(cp.instrument(-0.02));  // away while the model sags
     long diverged = 0, recovered = 0, diverged_before = 0;

@@ -299,9 +299,12 @@ class ForceModel {
                         Scalar* blocks, PositionsRef rhs, PositionsRef diagonal,
                         bool keep_contact_set = false) noexcept;
   /// @brief After a solve of a step of length h from the model's state: puts into the solve
-  /// exactly the instrument contacts that penetrate at the end positions `x_end` (`3|V|`) and
-  /// returns whether that changed the set (part contacts keep the start's set: parts touching at
-  /// rest sit at the threshold and would flip every step) (the step is then solved again with
+  /// exactly the instrument contacts that penetrate at the end positions `x_end` (`3|V|`), plus
+  /// those that did not penetrate at the start and joined an earlier pass of this step (near
+  /// contacts: their damping stops the sphere short of the surface, and dropping them would let
+  /// the next pass carry it in), and returns whether that changed the set (part contacts keep the
+  /// start's set: parts touching at rest sit at the threshold and would flip every step) (the
+  /// step is then solved again with
   /// keep_contact_set, so that the contact law applied is the one of the end state: backward Euler
   /// on the piecewise-linear penalty, which neither pumps energy into a chattering contact nor lets
   /// a sphere pass in unopposed).

@@ -185,7 +185,9 @@ Vector3<Scalar> contact_force(const PenaltyContact<Scalar>& c, const Scalar* x, 
   Scalar slope;
   const Scalar s = contact_onset(depth, c.onset, slope);
   const Scalar law = c.stiffness * s - c.damping * slope * vn;
-  fn = std::max(Scalar(0), law);
+  // No force before the sphere touches (a near contact, or one the step carried out), however
+  // fast it approaches: the damping acts only in contact.
+  fn = depth >= Scalar(0) ? std::max(Scalar(0), law) : Scalar(0);
   Scalar linear = law;
   if (!clamp && c.onset > Scalar(0)) {
     Scalar slope0;
@@ -268,7 +270,13 @@ void ForceModel<Scalar>::finish_contacts(const SphereModel<Scalar>& model) noexc
     PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
     Scalar fn;
     Vector3<Scalar> slip;
-    c.force = detail::contact_force(c, x, v, detail::surface_advance(c, m_contact_time), fn, slip);
+    // After an implicit step, a contact outside its last solve reports what the step applied
+    // through it: nothing. (A sphere the last contact pass carried in is pushed out by the next
+    // step; its penalty at this state would be a one-step spike in the instrument's wrench.)
+    c.force =
+        m_contacts_linearised && !c.in_solve
+            ? Vector3<Scalar>::Zero()
+            : detail::contact_force(c, x, v, detail::surface_advance(c, m_contact_time), fn, slip);
   }
   for (Index k = 0; k < m_num_held; ++k) {
     HeldNode<Scalar>& hn = m_held[std::size_t(k)];
@@ -685,7 +693,12 @@ bool ForceModel<Scalar>::update_contact_set(const SphereModel<Scalar>& model, co
     if (m_immobile[std::size_t(c.node)] && (c.other < 0 || m_immobile[std::size_t(c.other)]))
       continue;
     if (c.other >= 0) continue;  // part contacts keep the start's set (see the header)
+    // A contact that did not penetrate at the step's start (a near contact) and joined a pass
+    // stays for the rest of the step: its linear law, damping included, stops the sphere short of
+    // the surface, and dropping it again would let the next pass carry the sphere in.
+    const bool joined = c.in_solve && !(c.solve_depth > Scalar(0));
     const bool in =
+        joined ||
         detail::contact_depth(c, x_end, detail::surface_advance(c, m_contact_time + h)) > Scalar(0);
     changed = changed || in != c.in_solve;
     c.in_solve = in;
@@ -830,7 +843,9 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
     c.solve_depth = detail::contact_depth(c, x, adv);
     if (!keep_contact_set) c.in_solve = c.solve_depth > Scalar(0);
     const bool active = c.in_solve;
-    const Vector3<Scalar> F = detail::contact_force(c, x, v, adv, fn, slip, false);
+    // In the solve: the linear law for the whole step; out of it: the force at the start
+    // (clamped: a near contact outside the instrument pulls nothing).
+    const Vector3<Scalar> F = detail::contact_force(c, x, v, adv, fn, slip, !active);
     detail::contact_kinematics(c, x, v, d, u);
     // The law's slope at this state (1 for the plain penalty; the onset's s' otherwise).
     const Scalar slope = detail::contact_slope(c, c.solve_depth);

@@ -20,13 +20,14 @@ ContactSolver<Scalar>::ContactSolver(const SphereModel<Scalar>& model,
       !(o.damping_ratio >= 0) || !std::isfinite(o.damping_ratio) || !(o.friction_speed > 0) ||
       !(o.part_friction >= 0) || !(o.part_contact_onset >= 0) || !(o.part_contact_onset < 1) ||
       o.max_contacts < 1 || !(o.verlet_skin >= 0) || !std::isfinite(o.verlet_skin) ||
-      !(o.face_sample_spacing > 0) || !std::isfinite(o.face_sample_spacing))
+      !(o.face_sample_spacing > 0) || !std::isfinite(o.face_sample_spacing) ||
+      !(o.detection_margin >= 0) || !std::isfinite(o.detection_margin))
     throw Error("", "contact options",
                 "stiffness_ratio, part_stiffness_ratio, face_sample_spacing and friction_speed "
                 "must be positive, "
                 "damping_ratio and "
-                "part_friction non-negative, part_contact_onset in [0, 1), verlet_skin finite "
-                "and non-negative, max_contacts at least 1");
+                "part_friction non-negative, part_contact_onset in [0, 1), verlet_skin and "
+                "detection_margin finite and non-negative, max_contacts at least 1");
   refresh(model);
 }
 
@@ -65,6 +66,7 @@ void ContactSolver<Scalar>::refresh(const SphereModel<Scalar>& model) {
   const std::vector<Scalar> tissue = ForceModel<Scalar>(model).node_stiffness(model);
   m_k.resize(std::size_t(n));
   m_contact_radius.resize(std::size_t(n));
+  m_margin.resize(std::size_t(n));
   std::vector<std::uint8_t> in_element(std::size_t(n), 0);
   for (Index t = 0; t < model.num_tetrahedra(); ++t)
     for (int c = 0; c < 4; ++c) in_element[std::size_t(model.tetrahedra()(t, c))] = 1;
@@ -75,6 +77,7 @@ void ContactSolver<Scalar>::refresh(const SphereModel<Scalar>& model) {
     m_k[std::size_t(i)] = m_options.stiffness_ratio * k;
     m_contact_radius[std::size_t(i)] =
         m_options.tetrahedral_surface && in_element[std::size_t(i)] ? Scalar(0) : model.radii()[i];
+    m_margin[std::size_t(i)] = m_options.detection_margin * model.radii()[i];
     ++count[std::size_t(model.node_regions()[i])];
   }
   m_dominant_region =
@@ -335,6 +338,8 @@ void ContactSolver<Scalar>::record(const Contact<Scalar>& c) noexcept {
 
 template <typename Scalar>
 void ContactSolver<Scalar>::record_and_add(const PenaltyContact<Scalar>& c) noexcept {
+  // A near contact (ContactOptions::detection_margin) that does not push is not a contact yet.
+  if (!(c.depth > Scalar(0)) && c.force.squaredNorm() == Scalar(0)) return;
   record({c.node, c.instrument, c.other, c.normal, c.depth, c.point, c.force});
   if (c.instrument >= 0) {
     Wrench<Scalar>& w = m_wrenches[std::size_t(c.instrument)];
@@ -415,7 +420,8 @@ void ContactSolver<Scalar>::detect(const SphereModel<Scalar>& model, Emit&& emit
     if (!ins.enabled) continue;
     const auto box = bounding_box(ins.shape, ins.pose);  // (not a structured binding: captured)
     const Vector3<Scalar> box_lo = box.first, box_hi = box.second;
-    const Scalar margin = std::max(m_max_radius, faces ? Scalar(2) * m_max_face_edge : Scalar(0));
+    const Scalar margin = std::max((Scalar(1) + m_options.detection_margin) * m_max_radius,
+                                   faces ? Scalar(2) * m_max_face_edge : Scalar(0));
     const Vector3<Scalar> lo = box_lo.array() - margin, hi = box_hi.array() + margin;
     if (faces && ++m_stamp == 0) {  // the stamps wrapped: start again
       std::fill(m_face_stamp.begin(), m_face_stamp.end(), 0u);
@@ -433,19 +439,23 @@ void ContactSolver<Scalar>::detect(const SphereModel<Scalar>& model, Emit&& emit
         }
         return;
       }
-      if (faces && ((x.row(j).transpose() - box_lo).minCoeff() < -m_max_radius ||
-                    (box_hi - x.row(j).transpose()).minCoeff() < -m_max_radius))
+      const Scalar reach = (Scalar(1) + m_options.detection_margin) * m_max_radius;
+      if (faces && ((x.row(j).transpose() - box_lo).minCoeff() < -reach ||
+                    (box_hi - x.row(j).transpose()).minCoeff() < -reach))
         return;  // only in the margin the faces need
       ++m_narrow_tests;
       const Vector3<Scalar> c = x.row(j).transpose();
-      const auto hit = contact(ins.shape, ins.pose, c, m_contact_radius[std::size_t(j)]);
+      // Within the detection margin outside the instrument: a near contact (depth <= 0, no
+      // force until the step carries the sphere in; ContactOptions::detection_margin).
+      const Scalar margin = m_margin[std::size_t(j)];
+      const auto hit = contact(ins.shape, ins.pose, c, m_contact_radius[std::size_t(j)] + margin);
       if (!hit) return;
       PenaltyContact<Scalar> pc;
       pc.node = j;
       pc.instrument = Index(k);
       pc.normal = hit->normal;
       pc.point = hit->point;
-      pc.depth = hit->depth;
+      pc.depth = hit->depth - margin;
       pc.stiffness = m_k[std::size_t(j)];
       pc.damping = Scalar(2) * zeta * std::sqrt(pc.stiffness * mass[j]);
       pc.friction = ins.friction;
