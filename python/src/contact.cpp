@@ -120,7 +120,8 @@ instrument; what a haptic device renders (its negative is what the instrument ap
 ContactOptions(stiffness_ratio=100, damping_ratio=0.5, friction_speed=1e-3,
                tetrahedral_surface=True, part_contact=True, self_contact=False, part_friction=0,
                max_contacts=4096, spatial_hash=True, verlet_skin=0.002, part_stiffness_ratio=1,
-               part_contact_onset=0.1, face_contact=False, face_sample_spacing=0.001)
+               part_contact_onset=0.1, face_contact=False, face_sample_spacing=0.001,
+               detection_margin=0.25)
 
 stiffness_ratio: penalty stiffness as a multiple of the sphere's own tissue stiffness (the row sum
 of its links' and elements' rest stiffness), so the penetration is a fixed small share of the
@@ -136,14 +137,17 @@ part_friction: Coulomb coefficient between parts. max_contacts: length of the co
 spatial_hash: False tests every sphere (the reference). verlet_skin (m): slack of the part-contact
 pair list. face_contact: with tetrahedral_surface, instruments meet tetrahedral parts through sample
 points on their boundary faces (at most face_sample_spacing apart, m) instead of at the vertices,
-so a probe smaller than the vertex spacing cannot slip between vertices. Validated when a
+so a probe smaller than the vertex spacing cannot slip between vertices. detection_margin: spheres
+within this fraction of their radius outside an instrument are handed to the implicit step at zero
+force and join it if the step carries them in (0: penetrating spheres only). Validated when a
 ContactSolver is made.)")
       .def(py::init([](Scalar stiffness_ratio, Scalar damping_ratio, Scalar friction_speed,
                        bool tetrahedral_surface, bool part_contact, bool self_contact,
                        Scalar part_friction, Index max_contacts, bool spatial_hash,
                        Scalar verlet_skin, Scalar part_stiffness_ratio, Scalar part_contact_onset,
-                       bool face_contact, Scalar face_sample_spacing) {
+                       bool face_contact, Scalar face_sample_spacing, Scalar detection_margin) {
              Options o;
+             o.detection_margin = detection_margin;
              o.face_contact = face_contact;
              o.face_sample_spacing = face_sample_spacing;
              o.part_contact_onset = part_contact_onset;
@@ -166,7 +170,8 @@ ContactSolver is made.)")
            py::arg("part_friction") = 0.0, py::arg("max_contacts") = 4096,
            py::arg("spatial_hash") = true, py::arg("verlet_skin") = 0.002,
            py::arg("part_stiffness_ratio") = 1.0, py::arg("part_contact_onset") = 0.1,
-           py::arg("face_contact") = false, py::arg("face_sample_spacing") = 0.001)
+           py::arg("face_contact") = false, py::arg("face_sample_spacing") = 0.001,
+           py::arg("detection_margin") = 0.25)
       .def_readwrite("stiffness_ratio", &Options::stiffness_ratio,
                      "contact stiffness / the sphere's tissue stiffness")
       .def_readwrite("part_stiffness_ratio", &Options::part_stiffness_ratio,
@@ -189,7 +194,9 @@ ContactSolver is made.)")
       .def_readwrite("face_contact", &Options::face_contact,
                      "instruments meet tetrahedral parts at sample points on their boundary faces")
       .def_readwrite("face_sample_spacing", &Options::face_sample_spacing,
-                     "m: largest spacing of a boundary face's sample points");
+                     "m: largest spacing of a boundary face's sample points")
+      .def_readwrite("detection_margin", &Options::detection_margin,
+                     "near contacts: fraction of the sphere's radius outside an instrument");
 
   // ---- the solver ------------------------------------------------------------------------------
   py::class_<Solver>(m, "ContactSolver",

@@ -155,6 +155,9 @@ def test_bad_shapes_poses_and_options_raise_fsm_error(block):
         solver.add_instrument(fsm.Instrument(fsm.SphereShape(0.001), friction=-1))
     with pytest.raises(fsm.Error, match="contact options"):
         fsm.ContactSolver(block, fsm.ContactOptions(stiffness_ratio=0))
+    with pytest.raises(fsm.Error, match="detection_margin"):
+        fsm.ContactSolver(block, fsm.ContactOptions(detection_margin=-0.1))
+    assert fsm.ContactOptions().detection_margin == 0.25
     with pytest.raises(IndexError):
         solver.instrument(0)
     with pytest.raises(TypeError):
