@@ -447,15 +447,16 @@ void ContactSolver<Scalar>::detect(const SphereModel<Scalar>& model, Emit&& emit
       const Vector3<Scalar> c = x.row(j).transpose();
       // Within the detection margin outside the instrument: a near contact (depth <= 0, no
       // force until the step carries the sphere in; ContactOptions::detection_margin).
-      const Scalar margin = m_margin[std::size_t(j)];
-      const auto hit = contact(ins.shape, ins.pose, c, m_contact_radius[std::size_t(j)] + margin);
+      const Scalar near_margin = m_margin[std::size_t(j)];
+      const auto hit =
+          contact(ins.shape, ins.pose, c, m_contact_radius[std::size_t(j)] + near_margin);
       if (!hit) return;
       PenaltyContact<Scalar> pc;
       pc.node = j;
       pc.instrument = Index(k);
       pc.normal = hit->normal;
       pc.point = hit->point;
-      pc.depth = hit->depth - margin;
+      pc.depth = hit->depth - near_margin;
       pc.stiffness = m_k[std::size_t(j)];
       pc.damping = Scalar(2) * zeta * std::sqrt(pc.stiffness * mass[j]);
       pc.friction = ins.friction;
