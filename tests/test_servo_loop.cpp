@@ -493,8 +493,11 @@ TEST(ServoLoop, DecoupledLocalModelLetsGoDuringAStallWhileRetreating) {
     if (sample.time >= stall_from + 0.002 && sample.time < stall_from + 0.038)
       low = std::min(low, sample.force.z());
   }
-  EXPECT_GT(held, 0.02);  // it was pressing (N, upward; 0.04-0.1 N, less under a sanitizer)
-  EXPECT_GT(low, -0.03);  // and is not held back while it retreats
+  EXPECT_GT(held, 0.02);  // it was pressing (N, upward; 0.06-0.08 N, 0.09-0.16 under ASan)
+  // And it is not held back while it retreats: the coupling's damping and the proxy's lag give
+  // -0.015 N here (-0.02 to -0.03 N under ASan on a busy machine, where the simulation thread
+  // lags and its linearisation is older); a frozen proxy would pull with 0.4 N.
+  EXPECT_GT(low, -0.06);
 }
 
 // Decoupled, the watchdog lets the local model stand in for a late step up to
