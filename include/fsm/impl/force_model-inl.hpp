@@ -290,18 +290,20 @@ Index ForceModel<Scalar>::limit_contact_stiffness(const SphereModel<Scalar>& mod
   const auto mass = model.masses();
   Index softened = 0;
   // At most m / (2 h^2) for a spring on a mass m, the damping scaled to keep its ratio.
-  auto soften = [&](Scalar& stiffness, Scalar& damping, Scalar m) {
+  // (A near contact, not touching yet, is softened too but not counted: it is not a contact.)
+  auto soften = [&](Scalar& stiffness, Scalar& damping, Scalar m, bool count = true) {
     const Scalar cap = Scalar(0.5) * m / (h * h);
     if (!(stiffness > cap)) return;
     damping *= std::sqrt(cap / stiffness);
     stiffness = cap;
-    ++softened;
+    softened += count ? 1 : 0;
   };
   for (Index k = 0; k < m_num_contacts; ++k) {
     PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
     soften(
         c.stiffness, c.damping,
-        c.other < 0 ? mass[c.node] : mass[c.node] * mass[c.other] / (mass[c.node] + mass[c.other]));
+        c.other < 0 ? mass[c.node] : mass[c.node] * mass[c.other] / (mass[c.node] + mass[c.other]),
+        c.depth > Scalar(0) || c.other >= 0);
   }
   for (Index k = 0; k < m_num_held; ++k) {
     HeldNode<Scalar>& hn = m_held[std::size_t(k)];
