@@ -417,6 +417,76 @@ TEST(ContactSolver, NearContactJoinsTheStepThatCarriesTheSphereIn) {
   EXPECT_LT(inside[1], 5e-6) << "the near contact joined the step and held it out";
 }
 
+// A near contact that the step does not carry in does nothing: a sphere at rest 0.3 mm outside a
+// plate stays where it is (its penalty law, k times a negative depth, must not enter the step's
+// right-hand side as a pull), and an explicit step softens it without counting it as a contact.
+TEST(ContactSolver, NearContactAtRestOutsideIsNotPulledNorCounted) {
+  for (const std::string integrator : {"implicit_euler", "symplectic_euler"}) {
+    for (const double gap : {3e-4, -3e-4}) {  // outside (a near contact), inside (a contact)
+      SphereModel<double> m;
+      const Index reg = m.add_region("r", tissue<double>(13150, 10.26));
+      const double r = 0.002;
+      m.add_node(V3(0, 0, gap), r, 1e-4, reg);
+      Simulation<double>::Options o;
+      o.forces.gravity.setZero();
+      o.integrator = integrator;
+      Simulation<double> sim(m, o);
+      ContactOptions<double> co;
+      co.tetrahedral_surface = false;
+      ContactSolver<double> solver(sim.model(), sim.forces(), co);
+      Instrument<double> plate;
+      plate.shape = CylinderShape<double>{0.02, 0.005};
+      plate.pose.position = V3(0, 0, -r - 0.005);
+      solver.add_instrument(plate);
+      solver.compute(sim.model(), sim.forces());
+      ASSERT_EQ(sim.forces().num_contacts(), 1) << integrator << " " << gap;
+      const StepReport<double> rep = sim.step(1e-3);
+      ASSERT_TRUE(rep.advanced());
+      if (integrator == "symplectic_euler") {  // k = 1e4 N/m > m / (2 h^2) = 50 N/m: softened
+        EXPECT_EQ(rep.softened_contacts, gap > 0 ? 0 : 1) << gap;
+      }
+      if (gap > 0) {
+        EXPECT_EQ(sim.model().positions()(0, 2), gap) << integrator;
+        EXPECT_EQ(sim.model().velocities().row(0).norm(), 0.0) << integrator;
+      } else {
+        EXPECT_GT(sim.model().velocities()(0, 2), 0.0) << integrator;  // pushed out
+      }
+    }
+  }
+}
+
+// A contact left out of the step's last solve reports what the step applied through it: nothing.
+// With a single contact pass, a near contact that the step carries in ends inside the plate; its
+// penalty at that state (k x 0.2 mm = 2 N) was never applied, and reporting it would be a one-step
+// spike in the instrument's wrench (0.64 N on the validation's ball). The next step pushes it out.
+TEST(ContactSolver, ContactOutsideTheLastSolveReportsNoForce) {
+  SphereModel<double> m;
+  const Index reg = m.add_region("r", tissue<double>(13150, 10.26));
+  const double r = 0.002;
+  m.add_node(V3(0, 0, 0.0003), r, 1e-4, reg);
+  m.velocities().row(0) = V3(0, 0, -0.5).transpose();
+  Simulation<double>::Options o;
+  o.forces.gravity.setZero();
+  ImplicitEulerIntegrator<double>::Options io;
+  io.max_contact_passes = 1;
+  Simulation<double> sim(m, std::make_unique<ImplicitEulerIntegrator<double>>(io), o);
+  ContactOptions<double> co;
+  co.tetrahedral_surface = false;
+  ContactSolver<double> solver(sim.model(), sim.forces(), co);
+  Instrument<double> plate;
+  plate.shape = CylinderShape<double>{0.02, 0.005};
+  plate.pose.position = V3(0, 0, -r - 0.005);
+  const Index k = solver.add_instrument(plate);
+  solver.compute(sim.model(), sim.forces());
+  ASSERT_TRUE(sim.step(1e-3).advanced());
+  solver.collect(sim.forces());
+  ASSERT_LT(sim.model().positions()(0, 2), -1e-4);  // carried 0.2 mm in: no pass caught it
+  EXPECT_EQ(solver.wrench(k).force.norm(), 0.0);
+  EXPECT_EQ(solver.num_contacts(), 0);
+  solver.compute(sim.model(), sim.forces());    // the next step sees it and pushes it out
+  EXPECT_LT(solver.wrench(k).force.z(), -1.0);  // on the plate: down
+}
+
 TEST(ContactSolver, DegenerateInputGivesDefinedResults) {
   SphereModel<double> m = block<double>({2, 2, 2}, 0.004);
   ContactSolver<double> solver(m);

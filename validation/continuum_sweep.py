@@ -68,6 +68,23 @@ def indent_flags(law):
 BONDED = ("compression", "punch")
 
 
+def indent_run(a, scene, case, law, nu, r):
+    """(curve path, fsm-indent's JSON summary) of one run at 150 mm/min in a.work (the links have
+    no Poisson's ratio: one run, tagged without it); with a.reuse, a run already there is read."""
+    tag = f"{case}_{law.replace('+', '_').replace('/', '_')}_r{r:g}" + (
+        f"_nu{nu:g}" if law != "links" else "")
+    curve, summary = (os.path.join(a.work, tag + x) for x in (".csv", ".json"))
+    if not (a.reuse and os.path.exists(curve) and os.path.exists(summary)):
+        p = subprocess.run([a.indent, scene, "--case", case, *indent_flags(law), "--nu", str(nu),
+                            "--speed", "150", "--out", curve], capture_output=True, text=True)
+        if p.returncode not in (0, 3):
+            sys.exit(f"fsm-indent failed: {p.stderr}")
+        with open(summary, "w") as f:
+            f.write(p.stdout)
+    with open(summary) as f:
+        return curve, json.load(f)
+
+
 def graded_reference(nu):
     """The compression reference of the mesh family graded toward the bonded edges
     (reference/converged_compression_graded_nu<nu>.csv: make_reference.py), or None. It ends
@@ -189,20 +206,7 @@ def main():
                 key_nu = nu if law != "links" else None
                 if (case, law, key_nu) in runs:
                     continue
-                tag = f"{case}_{law.replace('+', '_').replace('/', '_')}_r{r:g}" + (
-                    f"_nu{nu:g}" if law != "links" else "")
-                out = os.path.join(a.work, tag + ".csv")
-                summary = os.path.join(a.work, tag + ".json")
-                if not (a.reuse and os.path.exists(out) and os.path.exists(summary)):
-                    p = subprocess.run([a.indent, scene, "--case", case, *indent_flags(law),
-                                        "--nu", str(nu), "--speed", "150", "--out", out],
-                                       capture_output=True, text=True)
-                    if p.returncode not in (0, 3):
-                        sys.exit(f"fsm-indent failed: {p.stderr}")
-                    with open(summary, "w") as f:
-                        f.write(p.stdout)
-                with open(summary) as f:
-                    runs[(case, law, key_nu)] = (out, json.load(f))
+                runs[(case, law, key_nu)] = indent_run(a, scene, case, law, nu, r)
         for case, nu in studies:
             for law in LAWS[case]:
                 if (case, law, nu if law != "links" else None) not in runs:
@@ -285,19 +289,7 @@ def indicative(a, case, n):
             if a.laws and law not in a.laws.split(","):
                 continue
             for nu in ((0.49,) if law == "links" else (0.49, 0.45)):
-                tag = f"{case}_{law.replace('+', '_').replace('/', '_')}_r{r:g}" + (
-                    f"_nu{nu:g}" if law != "links" else "")
-                curve, summary = (os.path.join(a.work, tag + x) for x in (".csv", ".json"))
-                if not (a.reuse and os.path.exists(curve) and os.path.exists(summary)):
-                    p = subprocess.run([a.indent, scene, "--case", case, *indent_flags(law),
-                                        "--nu", str(nu), "--speed", "150", "--out", curve],
-                                       capture_output=True, text=True)
-                    if p.returncode not in (0, 3):
-                        sys.exit(f"fsm-indent failed: {p.stderr}")
-                    with open(summary, "w") as f:
-                        f.write(p.stdout)
-                with open(summary) as f:
-                    s = json.load(f)
+                curve, s = indent_run(a, scene, case, law, nu, r)
                 d, F = validate.read_curve(curve)
                 ref = np.loadtxt(os.path.join(validate.REF_DIR, f"{case}_nu{nu:g}_n{n}.csv"),
                                  delimiter=",", skiprows=1)

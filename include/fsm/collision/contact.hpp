@@ -261,7 +261,6 @@ class ContactSolver {
   // Per node: contact stiffness (N/m) and the radius it meets instruments with (m); the most
   // populous region (not scanned for part contact).
   std::vector<Scalar> m_k, m_contact_radius;
-  std::vector<Scalar> m_margin;  // ContactOptions::detection_margin times each sphere's radius
   // Face contact (ContactOptions::face_contact): the tetrahedral parts' boundary faces at
   // refresh() (vertices, owning tetrahedron, samples per side), each node's faces (CSR), whether
   // a node meets instruments through its faces, its pressure stiffness (N/m^3), the longest

@@ -66,7 +66,6 @@ void ContactSolver<Scalar>::refresh(const SphereModel<Scalar>& model) {
   const std::vector<Scalar> tissue = ForceModel<Scalar>(model).node_stiffness(model);
   m_k.resize(std::size_t(n));
   m_contact_radius.resize(std::size_t(n));
-  m_margin.resize(std::size_t(n));
   std::vector<std::uint8_t> in_element(std::size_t(n), 0);
   for (Index t = 0; t < model.num_tetrahedra(); ++t)
     for (int c = 0; c < 4; ++c) in_element[std::size_t(model.tetrahedra()(t, c))] = 1;
@@ -77,7 +76,6 @@ void ContactSolver<Scalar>::refresh(const SphereModel<Scalar>& model) {
     m_k[std::size_t(i)] = m_options.stiffness_ratio * k;
     m_contact_radius[std::size_t(i)] =
         m_options.tetrahedral_surface && in_element[std::size_t(i)] ? Scalar(0) : model.radii()[i];
-    m_margin[std::size_t(i)] = m_options.detection_margin * model.radii()[i];
     ++count[std::size_t(model.node_regions()[i])];
   }
   m_dominant_region =
@@ -408,6 +406,7 @@ void ContactSolver<Scalar>::detect(const SphereModel<Scalar>& model, Emit&& emit
   const auto x = model.positions();
   const auto v = model.velocities();
   const auto mass = model.masses();
+  const auto radii = model.radii();
   const Scalar zeta = m_options.damping_ratio;
   const Scalar* xp = x.data();
   const Scalar* vp = v.data();
@@ -420,8 +419,9 @@ void ContactSolver<Scalar>::detect(const SphereModel<Scalar>& model, Emit&& emit
     if (!ins.enabled) continue;
     const auto box = bounding_box(ins.shape, ins.pose);  // (not a structured binding: captured)
     const Vector3<Scalar> box_lo = box.first, box_hi = box.second;
-    const Scalar margin = std::max((Scalar(1) + m_options.detection_margin) * m_max_radius,
-                                   faces ? Scalar(2) * m_max_face_edge : Scalar(0));
+    // Spheres reach the box by their radius plus their detection margin; faces by two edges.
+    const Scalar reach = (Scalar(1) + m_options.detection_margin) * m_max_radius;
+    const Scalar margin = std::max(reach, faces ? Scalar(2) * m_max_face_edge : Scalar(0));
     const Vector3<Scalar> lo = box_lo.array() - margin, hi = box_hi.array() + margin;
     if (faces && ++m_stamp == 0) {  // the stamps wrapped: start again
       std::fill(m_face_stamp.begin(), m_face_stamp.end(), 0u);
@@ -439,7 +439,6 @@ void ContactSolver<Scalar>::detect(const SphereModel<Scalar>& model, Emit&& emit
         }
         return;
       }
-      const Scalar reach = (Scalar(1) + m_options.detection_margin) * m_max_radius;
       if (faces && ((x.row(j).transpose() - box_lo).minCoeff() < -reach ||
                     (box_hi - x.row(j).transpose()).minCoeff() < -reach))
         return;  // only in the margin the faces need
@@ -447,7 +446,7 @@ void ContactSolver<Scalar>::detect(const SphereModel<Scalar>& model, Emit&& emit
       const Vector3<Scalar> c = x.row(j).transpose();
       // Within the detection margin outside the instrument: a near contact (depth <= 0, no
       // force until the step carries the sphere in; ContactOptions::detection_margin).
-      const Scalar near_margin = m_margin[std::size_t(j)];
+      const Scalar near_margin = m_options.detection_margin * radii[j];
       const auto hit =
           contact(ins.shape, ins.pose, c, m_contact_radius[std::size_t(j)] + near_margin);
       if (!hit) return;
