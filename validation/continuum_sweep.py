@@ -97,7 +97,7 @@ def score(d, F, case, nu):
     dr, Fr = validate.converged_reference(case, nu)
     m = validate.metrics(d, F, dr, Fr)
     mask = (d >= 0.5 - 1e-9) & (d <= 2.5 + 1e-9)
-    ref = np.interp(d[mask], dr, Fr)
+    ref = validate.interp_power(d[mask], dr, Fr)
     rel = np.max(np.abs(F[mask] - ref) / ref)
     out = {"max_disp_diff_mm": m["max_disp_diff_mm"], "rms_force_N": m["rms_force_N"],
            "covered": m["covered"], "max_rel_force_error_0p5_2p5": float(rel),
@@ -159,10 +159,17 @@ def main():
         result = os.path.join(HERE, "results", "continuum_sweep.json")
         with open(result) as f:
             data = json.load(f)
+        only = None  # with --studies: only those studies' rows (their curves must still exist)
+        if a.studies:
+            only = {(c, float(n)) for c, n in (x.split(":") for x in a.studies.split(","))}
         for x in data["runs"]:
-            if "failed" not in x:
-                x.update(score(*validate.read_curve(x["curve"]), x["case"], x["nu"]))
-        data["command"] += "; then validation/continuum_sweep.py --rescore"
+            if "failed" in x or (only is not None and (x["case"], x["nu"]) not in only):
+                continue
+            if not os.path.exists(x["curve"]):
+                sys.exit(f"--rescore: {x['curve']} is gone; rerun that study or pass --studies")
+            x.update(score(*validate.read_curve(x["curve"]), x["case"], x["nu"]))
+        data["command"] += "; then validation/continuum_sweep.py --rescore" + (
+            f" --studies {a.studies}" if a.studies else "")
         data["rescored"] = time.strftime("%Y-%m-%d")
         with open(result, "w") as f:
             json.dump(data, f, indent=1)

@@ -57,6 +57,16 @@ def main():
         return validate.metrics(d, F, dr, Fr), summary
 
     failures = []
+    # The sweep's force error interpolates the reference as a power law between its samples
+    # (validate.interp_power): exact on a Hertz-like curve where a chord is not.
+    dr = np.linspace(0, 2.5, 11)
+    x = np.linspace(0.05, 2.5, 99)
+    power_err = np.max(np.abs(validate.interp_power(x, dr, dr ** 1.5) / x ** 1.5 - 1))
+    chord_err = np.max(np.abs(np.interp(x[x >= 0.5], dr, dr ** 1.5) / x[x >= 0.5] ** 1.5 - 1))
+    print(f"reference interpolation on F = d^1.5 sampled every 0.25 mm: power law "
+          f"{power_err:.1e}, chord {100 * chord_err:.1f} % from 0.5 mm")
+    if not (power_err < 1e-9 and chord_err > 0.01):
+        failures.append("validate.interp_power is not exact on a power law")
     for key, case, smoothing in (("compression", "compression", "element"),
                                  ("sphere", "sphere", "element"),
                                  ("compression_node", "compression", "node")):

@@ -137,7 +137,8 @@ part_friction: Coulomb coefficient between parts. max_contacts: length of the co
 spatial_hash: False tests every sphere (the reference). verlet_skin (m): slack of the part-contact
 pair list. face_contact: with tetrahedral_surface, instruments meet tetrahedral parts through sample
 points on their boundary faces (at most face_sample_spacing apart, m) instead of at the vertices,
-so a probe smaller than the vertex spacing cannot slip between vertices. detection_margin: spheres
+so a probe smaller than the vertex spacing cannot slip between vertices; for smooth instruments
+(spheres, capsules), not flat ends or boxes, whose edges it cannot wrap. detection_margin: spheres
 within this fraction of their radius outside an instrument are handed to the implicit step at zero
 force and join it if the step carries them in (0: penetrating spheres only). Validated when a
 ContactSolver is made.)")

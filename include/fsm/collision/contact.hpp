@@ -103,6 +103,9 @@ struct ContactOptions {
   /// continuously as the instrument slides across faces (docs/physics.md section 8). Each vertex
   /// gets one PenaltyContact per instrument: the sum of its samples' laws. Vertices not on a
   /// boundary face (inside, or exposed by a cut) still meet instruments at their centres.
+  /// For smooth instruments (spheres, capsules): against a flat end's rim or a box's edge the
+  /// triangles that straddle the edge must clear it, which stiffens the contact and, at 1.5 mm
+  /// spacing and below, makes steps diverge (docs/physics.md section 8); use the vertices there.
   bool face_contact{false};
   /// Instrument contacts are also detected, at zero force, for spheres within this fraction of
   /// their radius outside the instrument. Such a near contact joins the implicit step's solve in a
