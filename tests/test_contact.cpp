@@ -381,6 +381,15 @@ TEST(ContactSolver, NoTunnellingAtHalfAMetrePerSecond) {
   }
 }
 
+// A plate 40 mm wide whose top face is at z = -r: a sphere of radius r centred at height g is g
+// outside it (the near-contact tests).
+Instrument<double> plate_below(double r) {
+  Instrument<double> plate;
+  plate.shape = CylinderShape<double>{0.02, 0.005};
+  plate.pose.position = V3(0, 0, -r - 0.005);
+  return plate;
+}
+
 // Near contacts (ContactOptions::detection_margin): a sphere just outside an instrument at a
 // step's start, which the step carries in, joins the step's later contact passes and ends at the
 // surface; without them it is free for the whole step and ends deep inside (the negative control).
@@ -401,10 +410,7 @@ TEST(ContactSolver, NearContactJoinsTheStepThatCarriesTheSphereIn) {
     co.detection_margin = margin;
     co.tetrahedral_surface = false;  // (no tetrahedra: it meets the tool at its radius anyway)
     ContactSolver<double> solver(sim.model(), sim.forces(), co);
-    Instrument<double> plate;
-    plate.shape = CylinderShape<double>{0.02, 0.005};
-    plate.pose.position = V3(0, 0, -r - 0.005);  // top face at z = -r: the sphere is 0.3 mm out
-    const Index k = solver.add_instrument(plate);
+    const Index k = solver.add_instrument(plate_below(r));  // the sphere is 0.3 mm out
     solver.compute(sim.model(), sim.forces());
     EXPECT_EQ(solver.num_contacts(), 0);  // a near contact is not a contact
     EXPECT_EQ(solver.wrench(k).force.norm(), 0.0);
@@ -434,10 +440,7 @@ TEST(ContactSolver, NearContactAtRestOutsideIsNotPulledNorCounted) {
       ContactOptions<double> co;
       co.tetrahedral_surface = false;
       ContactSolver<double> solver(sim.model(), sim.forces(), co);
-      Instrument<double> plate;
-      plate.shape = CylinderShape<double>{0.02, 0.005};
-      plate.pose.position = V3(0, 0, -r - 0.005);
-      solver.add_instrument(plate);
+      solver.add_instrument(plate_below(r));
       solver.compute(sim.model(), sim.forces());
       ASSERT_EQ(sim.forces().num_contacts(), 1) << integrator << " " << gap;
       const StepReport<double> rep = sim.step(1e-3);
@@ -473,10 +476,7 @@ TEST(ContactSolver, ContactOutsideTheLastSolveReportsNoForce) {
   ContactOptions<double> co;
   co.tetrahedral_surface = false;
   ContactSolver<double> solver(sim.model(), sim.forces(), co);
-  Instrument<double> plate;
-  plate.shape = CylinderShape<double>{0.02, 0.005};
-  plate.pose.position = V3(0, 0, -r - 0.005);
-  const Index k = solver.add_instrument(plate);
+  const Index k = solver.add_instrument(plate_below(r));
   solver.compute(sim.model(), sim.forces());
   ASSERT_TRUE(sim.step(1e-3).advanced());
   solver.collect(sim.forces());

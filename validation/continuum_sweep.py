@@ -93,6 +93,11 @@ def graded_reference(nu):
     return validate.converged_reference("compression_graded", nu) if os.path.exists(path) else None
 
 
+def parse_studies(text):
+    """[(case, nu)] of --studies' "case:nu,case:nu"."""
+    return [(c, float(n)) for c, n in (x.split(":") for x in text.split(","))]
+
+
 def score(d, F, case, nu):
     dr, Fr = validate.converged_reference(case, nu)
     m = validate.metrics(d, F, dr, Fr)
@@ -159,9 +164,8 @@ def main():
         result = os.path.join(HERE, "results", "continuum_sweep.json")
         with open(result) as f:
             data = json.load(f)
-        only = None  # with --studies: only those studies' rows (their curves must still exist)
-        if a.studies:
-            only = {(c, float(n)) for c, n in (x.split(":") for x in a.studies.split(","))}
+        # With --studies: only those studies' rows (their curves must still exist).
+        only = set(parse_studies(a.studies)) if a.studies else None
         for x in data["runs"]:
             if "failed" in x or (only is not None and (x["case"], x["nu"]) not in only):
                 continue
@@ -182,7 +186,7 @@ def main():
         return
     studies = STUDIES
     if a.studies:
-        studies = [(c, float(n)) for c, n in (x.split(":") for x in a.studies.split(","))]
+        studies = parse_studies(a.studies)
         for st in studies:
             if st not in STUDIES:
                 sys.exit(f"unknown study {st}")

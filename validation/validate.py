@@ -57,14 +57,12 @@ def interp_power(x, dr, Fr):
         return lin
     ld, lF = np.log(d), np.log(F)
     slopes = np.diff(lF) / np.diff(ld)
+    inside = (x > 0) & (x <= d[-1])
+    xi = x[inside]
+    # The interval of each x (below the first positive sample: the first interval's power law).
+    k = np.clip(np.searchsorted(d, xi) - 1, 0, len(d) - 2)
     out = lin.copy()
-    for i, xi in enumerate(x):
-        if xi <= 0 or xi > d[-1]:
-            continue
-        k = min(max(int(np.searchsorted(d, xi)) - 1, 0), len(d) - 2)
-        if xi < d[0]:
-            k = 0  # below the first positive sample: the first interval's power law
-        out[i] = np.exp(lF[k] + slopes[k] * (np.log(xi) - ld[k]))
+    out[inside] = np.exp(lF[k] + slopes[k] * (np.log(xi) - ld[k]))
     return out
 
 
