@@ -172,23 +172,27 @@ int main(int argc, char** argv) {
           "\"probe_contacts\": %d, \"contacts\": %d, \"steps\": %d, \"mean_us\": %.1f, "
           "\"p50_us\": %.1f, \"p99_us\": %.1f, \"max_us\": %.1f, \"cg_iterations\": %.2f, "
           "\"recovered\": %ld, \"diverged\": %ld, \"diverged_before_timing\": %ld, "
-          "\"element_tangent_quality\": %g, \"gravity\": \"%s\", \"smoothing\": \"%s\"}\n",
+          "\"element_tangent_quality\": %g, \"element_tangents\": %d, \"fluttered\": %d, "
+          "\"gravity\": \"%s\", \"smoothing\": \"%s\"}\n",
           path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
           int(sim.model().num_tetrahedra()), law.c_str(), threads, tolerance,
           probe ? "true" : "false", int(probe_contacts), int(contacts.num_contacts()), steps,
           mean * 1e6, pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it, recovered, diverged,
-          diverged_before, element_tangent_quality, gravity_y ? "-y" : "-z", smoothing.c_str());
+          diverged_before, element_tangent_quality, int(sim.forces().continuum_element_tangents()),
+          int(sim.forces().continuum_fluttered_elements()), gravity_y ? "-y" : "-z",
+          smoothing.c_str());
     else
       std::printf(
           "%s: %d spheres, %d links, %d tetrahedra; %s law (%s strain), %d thread(s), CG to %g; "
           "probe on '%s' (%d contacts of %d)\n  1 ms step: mean %.1f us, p50 %.1f, p99 "
           "%.1f, max %.1f; %.2f CG iterations; %ld steps retried as half steps, %ld diverged "
-          "(%ld before timing)\n",
+          "(%ld before timing); %d elements with the element tangent, %d of them fluttered\n",
           path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
           int(sim.model().num_tetrahedra()), law.c_str(), smoothing.c_str(), threads, tolerance,
           target->name.c_str(), int(probe_contacts), int(contacts.num_contacts()), mean * 1e6,
-          pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it, recovered, diverged,
-          diverged_before);
+          pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it, recovered, diverged, diverged_before,
+          int(sim.forces().continuum_element_tangents()),
+          int(sim.forces().continuum_fluttered_elements()));
     if (probe && probe_contacts == 0) {
       std::fprintf(stderr, "bench_model_step: the probe does not touch the tissue\n");
       return 1;

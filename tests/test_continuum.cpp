@@ -449,7 +449,8 @@ TEST(Continuum, MatrixFreeTangentMatchesAssembledForEveryTangentChoice) {
 // step, and the apex stays by its base.
 TEST(Continuum, LightNodeOnASliverStaysStable) {
   const double s = 0.003;
-  for (const double quality : {0.0, 0.3}) {
+  // (quality, flutter guard): edge springs alone; the element tangent by shape; by flutter alone.
+  for (const auto& [quality, guard] : {std::pair(0.0, false), {0.3, false}, {0.0, true}}) {
     SphereModel<double> m = continuum_block({3, 3, 2}, s, soft(0.45));
     // Three top nodes around a corner and an apex 0.05 s above their centroid: quality ~0.05.
     Index a = -1, b = -1, c = -1;
@@ -471,11 +472,17 @@ TEST(Continuum, LightNodeOnASliverStaysStable) {
     m.add_tetrahedron(a, b, c, d);
     Simulation<double>::Options o;
     o.forces.element_tangent_quality = quality;
+    o.forces.flutter_guard = guard;
     Simulation<double> sim(m, o);
     int diverged = 0;
     for (int k = 0; k < 300; ++k) diverged += !sim.step(1e-3).advanced();
     const double lift = sim.model().positions()(d, 2) - sim.model().positions()(a, 2);
-    if (quality > 0) {
+    std::printf(
+        "quality %.1f, flutter guard %d: %d of 300 steps diverged, lift %.3g mm, %d "
+        "elements found fluttering\n",
+        quality, int(guard), diverged, lift * 1e3,
+        int(sim.forces().continuum_fluttered_elements()));
+    if (quality > 0 || guard) {
       EXPECT_EQ(diverged, 0);
       EXPECT_TRUE(sim.model().positions().allFinite());
       EXPECT_LT(std::abs(lift), s) << "the apex left its base";
@@ -508,6 +515,38 @@ TEST(Continuum, StrainedElementsGetTheElementTangent) {
   EXPECT_EQ(f.continuum_element_tangents(), m.num_tetrahedra());
   f.evaluate(m, affine(m, isochoric(1.3)), zero, F);
   EXPECT_EQ(f.continuum_element_tangents(), 0);
+}
+
+// The flutter guard (ContinuumTerm::flutter_change): an element whose J swings back and forth by
+// more than 0.1 % over three implicit steps (two reversals) keeps the element tangent; a steady
+// change, a small swing, a re-solve of the same step and a guard that is off mark nothing.
+TEST(Continuum, FlutteringElementsGetTheElementTangent) {
+  const SphereModel<double> rest = continuum_block({2, 2, 2}, 0.005);
+  auto run = [&](const std::vector<double>& js, bool guard, int passes = 1) {
+    SphereModel<double> m = rest;
+    ForceModel<double>::Options o;
+    o.gravity.setZero();
+    o.flutter_guard = guard;
+    ForceModel<double> f(m, o);
+    std::vector<double> blocks(std::size_t(ForceModel<double>::implicit_block_size) *
+                               std::size_t(m.num_links()));
+    Positions<double> rhs(m.num_nodes(), 3), diag(m.num_nodes(), 3);
+    for (const double j : js) {
+      m.positions() = affine(m, M3(std::cbrt(j) * M3::Identity()));
+      for (int pass = 0; pass < passes; ++pass)
+        f.prepare_implicit(m, 1e-3, JacobianForm::definite, blocks.data(), rhs, diag, pass > 0);
+    }
+    return std::pair{f.continuum_fluttered_elements(), f.continuum_element_tangents()};
+  };
+  const Index all = rest.num_tetrahedra();
+  EXPECT_EQ(run({1.0, 1.01, 1.0}, true).first, 0) << "one reversal is a bounce, not flutter";
+  EXPECT_EQ(run({1.0, 1.01, 1.0, 1.01}, true), std::pair(all, all));
+  EXPECT_EQ(run({1.0, 1.01, 1.0, 1.01}, true, 2), std::pair(all, all)) << "re-solves";
+  EXPECT_EQ(run({1.0, 1.01, 1.02, 1.03, 1.04}, true).first, 0) << "a steady change";
+  EXPECT_EQ(run({1.0, 1.0005, 1.0, 1.0005, 1.0}, true).first, 0) << "a swing below 0.1 %";
+  EXPECT_EQ(run({1.0, 1.01, 1.0, 1.01, 1.0}, false), std::pair(Index(0), Index(0)));
+  // Marked elements keep the element tangent when the swing stops.
+  EXPECT_EQ(run({1.0, 1.01, 1.0, 1.01, 1.01, 1.01}, true), std::pair(all, all));
 }
 
 // --- Smoothed strains (StrainSmoothing, docs/physics.md section 11) ---

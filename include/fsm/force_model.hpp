@@ -142,6 +142,13 @@ class ForceModel {
     /// (each costs about five times its edge springs per solver iteration).
     Scalar element_tangent_quality{
         Scalar(detail::ContinuumTerm<Scalar>::default_element_tangent_quality)};
+    /// Whether the implicit step watches each continuum element's volume for flutter (J swinging
+    /// back and forth from one step to the next by more than 0.1 %, twice in a row) and gives an
+    /// element found fluttering the element tangent from then on. The shape quality alone does
+    /// not find every element whose edge springs let the step overshoot: on the VHF left adnexa
+    /// one element of quality 0.47 kept about 50 elements swinging and took 2.4 times the solver
+    /// iterations (docs/physics.md section 11). Off: the negative control.
+    bool flutter_guard{true};
     /// How the continuum law measures the deviatoric strain: each tetrahedron's own F (element,
     /// the linear tetrahedron, the default) or F averaged over the tetrahedra at each face, edge
     /// or node (softer, closer to the continuum in bulk deformation at the same nodes, softer
@@ -340,6 +347,11 @@ class ForceModel {
   /// or strongly strained ones, Options::element_tangent_quality).
   [[nodiscard]] Index continuum_element_tangents() const noexcept {
     return Index(m_continuum.num_element_tangents());
+  }
+  /// @brief Continuum elements found fluttering in an implicit step (their J swinging back and
+  /// forth from step to step), which keep the element tangent since (docs/physics.md section 11).
+  [[nodiscard]] Index continuum_fluttered_elements() const noexcept {
+    return Index(m_continuum.num_fluttered());
   }
   /// @brief Continuum elements with \f$J \le 0\f$ (inverted) at x.
   [[nodiscard]] Index inverted_elements(const ConstPositionsRef& x) const noexcept {

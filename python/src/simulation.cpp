@@ -72,7 +72,7 @@ void define_simulation(py::module_& m) {
 Simulation(model, integrator="implicit_euler", gravity=(0, 0, -9.81), damping="along_link",
            threads=1, check_energy=True, energy_tolerance=1.0, max_substep_halvings=0,
            drag=0.0, element_tangent_quality=0.3, strain_smoothing="element",
-           smoothing_element_share=0.1)
+           smoothing_element_share=0.1, flutter_guard=True)
 
 The model is copied in; sim.model is the simulated one. integrator is a name from
 fsm.integrator_names() or an fsm.Integrator instance (copied). drag (1/s) is the surroundings'
@@ -82,19 +82,23 @@ implicit solve (0 = none, above 1 = all; strongly strained elements get it whate
 strain_smoothing: how the continuum law measures the deviatoric strain, "element" (each
 tetrahedron's own), or averaged over the tetrahedra at each "face", "edge" or "node" (softer,
 closer to the continuum under bulk loads, softer under a point load; docs/physics.md section 11),
-with smoothing_element_share of the energy kept on each element's own strain. A
+with smoothing_element_share of the energy kept on each element's own strain. flutter_guard:
+a continuum element whose volume swings back and forth from step to step gets the element tangent
+from then on (False: the negative control). A
 diverging step is rolled back and reported, never left as NaN. Raises fsm.Error for a bad model or
 option.)")
       .def(py::init([](const SphereModel<Scalar>& model, const py::object& integrator,
                        const Vector3<Scalar>& gravity, const std::string& damping, int threads,
                        bool check_energy, Scalar energy_tolerance, int max_substep_halvings,
                        Scalar drag, Scalar element_tangent_quality,
-                       const std::string& strain_smoothing, Scalar smoothing_element_share) {
+                       const std::string& strain_smoothing, Scalar smoothing_element_share,
+                       bool flutter_guard) {
              typename Sim::Options o;
              o.forces.strain_smoothing = to_smoothing(strain_smoothing);
              o.forces.smoothing_element_share = smoothing_element_share;
              o.forces.drag = drag;
              o.forces.element_tangent_quality = element_tangent_quality;
+             o.forces.flutter_guard = flutter_guard;
              o.forces.gravity = gravity;
              o.forces.damping = to_damping(damping);
              o.forces.threads = threads;
@@ -108,7 +112,8 @@ option.)")
            py::arg("threads") = 1, py::arg("check_energy") = true,
            py::arg("energy_tolerance") = 1.0, py::arg("max_substep_halvings") = 0,
            py::arg("drag") = 0.0, py::arg("element_tangent_quality") = 0.3,
-           py::arg("strain_smoothing") = "element", py::arg("smoothing_element_share") = 0.1)
+           py::arg("strain_smoothing") = "element", py::arg("smoothing_element_share") = 0.1,
+           py::arg("flutter_guard") = true)
       .def("step", &Sim::step, py::arg("dt"), py::call_guard<py::gil_scoped_release>(),
            "Advances by dt seconds; returns a StepReport. Never raises.")
       .def(

@@ -221,6 +221,15 @@ class ContinuumTerm {
   /// (docs/physics.md section 11): at 0.2 the sagging VHF pelvis needs 22 solver iterations a step
   /// (at 1.0: 38) but the validation's bonded compression twice as many as without it.
   static constexpr double element_tangent_strain = 0.5;
+  /// An element whose volume ratio J moves by more than this from one implicit step to the next,
+  /// in alternating directions over three successive steps (two reversals), is fluttering: its
+  /// edge springs let the step overshoot a mode they do not carry, and the step swings it back
+  /// and forth at the step's own frequency, which a stable implicit step never produces. Such an
+  /// element gets the element tangent from then on (until refresh()). Found on the VHF left
+  /// adnexa: one element of shape quality 0.465 (the threshold is 0.3) seeded a period-2 swing of
+  /// J between 0.96 and 1.0 in about 50 elements, held for as long as the run lasted and taking
+  /// 2.4 times the solver iterations (docs/physics.md section 11).
+  static constexpr double flutter_change = 1e-3;
   /// Default of set_smoothing()'s element share.
   static constexpr double default_element_share = 0.1;
 
@@ -278,6 +287,22 @@ class ContinuumTerm {
   /// The elements that have the element tangent at the last add_forces(): those of poor shape
   /// and those strained past element_tangent_strain.
   [[nodiscard]] std::size_t num_element_tangents() const noexcept { return m_dense.size(); }
+  /// The elements found fluttering (flutter_change) since the last refresh(): they keep the
+  /// element tangent.
+  [[nodiscard]] std::size_t num_fluttered() const noexcept { return m_num_fluttered; }
+  /// Makes the next add_forces() watch each element's J for flutter (flutter_change): the
+  /// implicit step calls it once per step, before its first force evaluation. No allocation.
+  void watch_next_forces() noexcept { m_watch = m_flutter_guard; }
+  /// Whether watch_next_forces() watches (default true). Off also forgets the elements found
+  /// fluttering. No allocation.
+  void set_flutter_guard(bool on) noexcept {
+    m_flutter_guard = on;
+    if (on) return;
+    std::fill(m_fluttered.begin(), m_fluttered.end(), std::uint8_t(0));
+    std::fill(m_reversals.begin(), m_reversals.end(), std::uint8_t(0));
+    m_num_fluttered = 0;
+    m_watch = false;
+  }
 
   /// Rebuilds everything from the model's continuum regions (allocates; not real-time).
   void refresh(const SphereModel<Scalar>& model) {
@@ -377,6 +402,12 @@ class ContinuumTerm {
     m_removed.assign(nt, 0);
     m_state_factor.assign(nt, Scalar(1));
     m_pressure.assign(nt, Scalar(0));
+    m_step_j.assign(nt, Scalar(1));
+    m_step_dj.assign(nt, Scalar(0));
+    m_reversals.assign(nt, 0);
+    m_fluttered.assign(nt, 0);
+    m_num_fluttered = 0;
+    m_watch = false;
     set_element_tangent_quality(m_element_tangent_quality);
     m_edge_block.assign(std::size_t(edge_block_size) * num_edges(), Scalar(0));
     m_node_coefficient.assign(std::size_t(n), Scalar(0));
@@ -545,7 +576,8 @@ class ContinuumTerm {
       add(f, id[0], f0);
       const bool strained = distortion > Scalar(element_tangent_strain) ||
                             std::abs(vt / m_volume[t] - Scalar(1)) > Scalar(element_tangent_strain);
-      m_element_tangent[t] = std::uint8_t(m_poor_shape[t] || strained);
+      if (m_watch) watch_flutter(t, vt / m_volume[t]);
+      m_element_tangent[t] = std::uint8_t(m_poor_shape[t] || strained || m_fluttered[t]);
       if (m_element_tangent[t]) {
         if (!have_f) {
           Matrix3<Scalar> Ds;
@@ -562,6 +594,7 @@ class ContinuumTerm {
         rate[id[k]] += dvt / Scalar(4);
       }
     }
+    m_watch = false;
     // Nodal pressures: p_a = K (J_a - 1) + tau K dJ_a/dt, J_a = v_a / V_a.
     for (Index a = 0; a < m_num_nodes; ++a) {
       const Scalar V = m_node_volume[std::size_t(a)];
@@ -1409,6 +1442,22 @@ class ContinuumTerm {
     }
   }
 
+  /// One step's J of element t (flutter_change): two reversals in a row of a change larger than
+  /// flutter_change mark it.
+  void watch_flutter(std::size_t t, Scalar j) noexcept {
+    const Scalar d = j - m_step_j[t];
+    const auto limit = Scalar(flutter_change);
+    const bool reversal =
+        d * m_step_dj[t] < Scalar(0) && std::abs(d) > limit && std::abs(m_step_dj[t]) > limit;
+    m_reversals[t] = reversal ? std::uint8_t(std::min(2, m_reversals[t] + 1)) : std::uint8_t(0);
+    if (m_reversals[t] >= 2 && !m_fluttered[t]) {
+      m_fluttered[t] = 1;
+      ++m_num_fluttered;
+    }
+    m_step_j[t] = j;
+    m_step_dj[t] = d;
+  }
+
   // y += sum_a coefficient(a) (grad v_a . p) grad v_a, with the gradients of prepare_implicit().
   // On the SIMD kernels when `p4` (p padded to 4 per node) is given and the CPU has them.
   template <typename Coefficient>
@@ -1480,6 +1529,12 @@ class ContinuumTerm {
   mutable std::vector<Scalar> m_energy_scratch;
   // The element kernels (build_batches()): inputs, outputs, and the states padded to 4 per node.
   bool m_simd{true};
+  // The flutter watch (flutter_change): per element, J at the last watched step, its change then,
+  // reversals in a row, and whether it has fluttered.
+  std::vector<Scalar> m_step_j, m_step_dj;
+  std::vector<std::uint8_t> m_reversals, m_fluttered;
+  std::size_t m_num_fluttered{0};
+  bool m_watch{false}, m_flutter_guard{true};
   std::vector<std::int32_t> m_batch_nodes;
   std::vector<Scalar> m_batch_rest, m_batch_out, m_batch_grad, m_v4, m_y4;
   mutable std::vector<Scalar> m_x4, m_energy_out;

@@ -535,6 +535,7 @@ void ForceModel<Scalar>::set_options(const Options& options) {
   if (m_continuum.element_tangent_quality() != options.element_tangent_quality)
     m_continuum.set_element_tangent_quality(options.element_tangent_quality);
   m_continuum.set_simd(options.simd);
+  m_continuum.set_flutter_guard(options.flutter_guard);
   m_continuum.set_smoothing(options.strain_smoothing, options.smoothing_element_share);
   resize_scratch();
 }
@@ -822,6 +823,7 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
       const Scalar *x4 = nullptr, *v4 = nullptr;  // padded above for the link kernel
       if constexpr (std::is_same_v<Scalar, double>)
         if (simd_prepare) x4 = m_x4.data(), v4 = m_v4.data();
+      if (!keep_contact_set) m_continuum.watch_next_forces();  // once per step: its first pass
       m_continuum.add_forces(x, v, m_element_force.data(), true, x4, v4);
       Scalar* r = rhs.data();
       for (std::size_t k = 0; k < m_element_force.size(); ++k) r[k] += h * m_element_force[k];
