@@ -146,15 +146,20 @@ def model_step_chart():
     for r in rows:
         if r["diverged"]:
             continue
-        series.setdefault((r["law"], r["threads"]), []).append(r)
-    for (law, threads), pts in sorted(series.items()):
+        series.setdefault((r["law"], r["threads"], r.get("flutter_guard", True)), []).append(r)
+    for (law, threads, guard), pts in sorted(series.items()):
         pts.sort(key=lambda r: r["spheres"])
         style = {"color": "tab:purple" if law == "continuum" else "tab:green",
-                 "linestyle": "-" if threads == 1 else "--", "marker": "o"}
+                 "linestyle": ("-" if threads == 1 else "--") if guard else ":", "marker": "o"}
+        name = f"{law}, {threads} thread{'s' if threads > 1 else ''}"
+        if not guard:  # the continuum law before the flutter guard: mean only
+            ax.plot([r["spheres"] for r in pts], [r["mean_us"] for r in pts], alpha=0.6,
+                    label=f"{name}, no flutter guard: mean", **style)
+            continue
         ax.plot([r["spheres"] for r in pts], [r["mean_us"] for r in pts],
-                label=f"{law}, {threads} thread{'s' if threads > 1 else ''}: mean", **style)
+                label=f"{name}: mean", **style)
         ax.plot([r["spheres"] for r in pts], [r["p99_us"] for r in pts], alpha=0.35,
-                label=f"{law}, {threads} thread{'s' if threads > 1 else ''}: p99", **style)
+                label=f"{name}: p99", **style)
     seen = set()
     for r in rows:
         if r["model"] not in seen and r["law"] == "links" and r["threads"] == 1:
