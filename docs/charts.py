@@ -141,20 +141,27 @@ def model_step_chart():
     if not os.path.exists(path):
         return
     rows = [json.loads(line) for line in open(path) if line.strip()]
-    fig, ax = plt.subplots(figsize=(6.6, 4.4))
+    fig, ax = plt.subplots(figsize=(7.0, 6.2))
     series = {}
     for r in rows:
         if r["diverged"]:
             continue
-        series.setdefault((r["law"], r["threads"], r.get("flutter_guard", True)), []).append(r)
-    for (law, threads, guard), pts in sorted(series.items()):
+        # 0: today's defaults; 1: without the extrapolated warm start; 2: without the flutter
+        # guard either (the continuum law as it was before both).
+        variant = (0 if r.get("extrapolated_warm_start", True) else
+                   1 if r.get("flutter_guard", True) else 2)
+        series.setdefault((r["law"], r["threads"], variant), []).append(r)
+    labels = {1: "no extrapolated warm start", 2: "neither it nor the flutter guard"}
+    for (law, threads, variant), pts in sorted(series.items()):
         pts.sort(key=lambda r: r["spheres"])
         style = {"color": "tab:purple" if law == "continuum" else "tab:green",
-                 "linestyle": ("-" if threads == 1 else "--") if guard else ":", "marker": "o"}
+                 "linestyle": "-" if threads == 1 else "--", "marker": "o"}
         name = f"{law}, {threads} thread{'s' if threads > 1 else ''}"
-        if not guard:  # the continuum law before the flutter guard: mean only
-            ax.plot([r["spheres"] for r in pts], [r["mean_us"] for r in pts], alpha=0.6,
-                    label=f"{name}, no flutter guard: mean", **style)
+        if variant:  # the step before this session's two changes: mean only
+            style.update(linestyle=":" if variant == 1 else (0, (1, 4)),
+                         marker="x" if variant == 1 else "+")
+            ax.plot([r["spheres"] for r in pts], [r["mean_us"] for r in pts], alpha=0.7,
+                    label=f"{name}, {labels[variant]}: mean", **style)
             continue
         ax.plot([r["spheres"] for r in pts], [r["mean_us"] for r in pts],
                 label=f"{name}: mean", **style)
@@ -162,7 +169,8 @@ def model_step_chart():
                 label=f"{name}: p99", **style)
     seen = set()
     for r in rows:
-        if r["model"] not in seen and r["law"] == "links" and r["threads"] == 1:
+        if (r["model"] not in seen and r["law"] == "links" and r["threads"] == 1
+                and r.get("extrapolated_warm_start", True)):
             seen.add(r["model"])
             ax.annotate(r["model"].split(" (")[0], xy=(r["spheres"], r["mean_us"]),
                         xytext=(-20, -18), textcoords="offset points", fontsize=7)
@@ -175,7 +183,7 @@ def model_step_chart():
     ax.set_xlabel("spheres")
     ax.set_ylabel("one 1 ms implicit Euler step with a probe, microseconds")
     ax.set_title("Real models: step time (block-Jacobi CG to 1e-3, drag 5/s)")
-    ax.legend(fontsize=6, ncol=2)
+    ax.legend(fontsize=6, ncol=2, loc="upper center", bbox_to_anchor=(0.5, -0.12))
     fig.tight_layout()
     fig.savefig(os.path.join(IMG, "model_step_time.png"), dpi=120)
 

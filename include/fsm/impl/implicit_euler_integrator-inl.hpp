@@ -12,10 +12,11 @@ void ImplicitEulerIntegrator<Scalar>::prepare(const SphereModel<Scalar>& model) 
   m_blocks.assign(
       std::size_t(ForceModel<Scalar>::implicit_block_size) * std::size_t(model.num_links()),
       Scalar(0));
-  for (Positions<Scalar>* w : {&m_rhs, &m_diag, &m_dv, &m_r, &m_z, &m_p, &m_q, &m_x_end})
+  for (Positions<Scalar>* w :
+       {&m_rhs, &m_diag, &m_dv, &m_r, &m_z, &m_p, &m_q, &m_x_end, &m_dv_previous})
     w->setZero(n, 3);
   m_pblocks.assign(6 * std::size_t(n), Scalar(0));
-  m_last_dt = Scalar(0);
+  m_last_dt = m_previous_dt = Scalar(0);
 }
 
 template <typename Scalar>
@@ -55,8 +56,21 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg(SphereModel<Scalar>& 
   const auto& fixed = forces.immobile();  // fixed or asleep
   const Index n = model.num_nodes();
 
-  // Warm start: the previous step's velocity change, scaled to this step size.
+  // Warm start: the previous step's velocity change, scaled to this step size, or extrapolated
+  // from the two before (Options::extrapolate_warm_start). m_q is CG's scratch, free until the
+  // solve.
+  const bool extrapolate =
+      m_options.extrapolate_warm_start && m_last_dt == dt && m_previous_dt == dt;
   if (m_last_dt > Scalar(0)) m_dv *= dt / m_last_dt;
+  if (extrapolate) {
+    m_q = m_dv;
+    m_dv *= Scalar(2);
+    m_dv -= m_dv_previous;
+    m_dv_previous = m_q;
+  } else {
+    m_dv_previous = m_dv;
+  }
+  m_previous_dt = m_last_dt > Scalar(0) ? dt : Scalar(0);
   for (Index i = 0; i < n; ++i)
     if (fixed[std::size_t(i)]) m_dv.row(i).setZero();
   if (!m_dv.allFinite()) m_dv.setZero();
