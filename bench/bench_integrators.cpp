@@ -70,13 +70,15 @@ void BM_IntegratorOnly(benchmark::State& state, const std::string& name) {
 // gravity, random initial velocities), the link law or the continuum law (its tetrahedra), on 1
 // or 2 threads. Counters: spheres, CG iterations per step, and the real-time factor (1 ms over
 // the step's time: at least 1 runs at 1 kHz). docs/img/scale_step_time.png charts it.
-void BM_ScaleImplicitStep(benchmark::State& state) {
+void scale_implicit_step(benchmark::State& state, bool extrapolate) {
   SphereModel<double> model = lattice_model<double>(int(state.range(0)));
   if (state.range(1) != 0) model.set_region_law(0, ForceLaw::continuum);
   Simulation<double>::Options o;
-  o.integrator = "implicit_euler";
   o.forces.threads = int(state.range(2));
   Simulation<double> sim(std::move(model), o);
+  ImplicitEulerIntegrator<double>::Options io;
+  io.extrapolate_warm_start = extrapolate;
+  sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
   for (int s = 0; s < 20; ++s) sim.step(1e-3);  // warm-up: CG's warm start settles
   long iterations = 0, steps = 0, failures = 0;
   for (auto _ : state) {
@@ -91,8 +93,18 @@ void BM_ScaleImplicitStep(benchmark::State& state) {
       benchmark::Counter(1e-3 * double(steps), benchmark::Counter::kIsRate);
   if (failures) state.SkipWithError("steps failed");
 }
+void BM_ScaleImplicitStep(benchmark::State& state) { scale_implicit_step(state, true); }
 BENCHMARK(BM_ScaleImplicitStep)
     ->ArgsProduct({{8, 12, 17, 21, 26}, {0, 1}, {1, 2}})
+    ->ArgNames({"cells", "continuum", "threads"})
+    ->UseRealTime()
+    ->Unit(benchmark::kMicrosecond);
+// The same without ImplicitEulerIntegrator::Options::extrapolate_warm_start (the step before it).
+void BM_ScaleImplicitStepNoExtrapolation(benchmark::State& state) {
+  scale_implicit_step(state, false);
+}
+BENCHMARK(BM_ScaleImplicitStepNoExtrapolation)
+    ->ArgsProduct({{8, 12, 17, 21, 26}, {0, 1}, {1}})
     ->ArgNames({"cells", "continuum", "threads"})
     ->UseRealTime()
     ->Unit(benchmark::kMicrosecond);

@@ -103,10 +103,22 @@ def scale_chart():
         law, threads = m.groups()
         series.setdefault((law, threads), []).append(
             (b["spheres"], b["real_time"], b["cg_iters"]))
+    before = {}  # the same without the extrapolated warm start (one thread)
+    for b in data["benchmarks"]:
+        m = re.match(r"BM_ScaleImplicitStepNoExtrapolation/cells:\d+/continuum:(\d)/threads:1",
+                     b["name"])
+        if m and not b.get("error_occurred"):
+            before.setdefault(m.group(1), []).append((b["spheres"], b["real_time"]))
     if not series:
         return
     fig, ax = plt.subplots(figsize=(6.6, 4.4))
     best = None
+    for law, pts in sorted(before.items()):
+        pts.sort()
+        name = "continuum" if law == "1" else "links (the paper's)"
+        ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="x", alpha=0.6, linestyle=":",
+                color="tab:purple" if law == "1" else "tab:green",
+                label=f"{name}, 1 thread, no extrapolated warm start")
     for (law, threads), pts in sorted(series.items()):
         pts.sort()
         name = "continuum" if law == "1" else "links (the paper's)"
