@@ -411,6 +411,7 @@ class ContinuumTerm {
     set_element_tangent_quality(m_element_tangent_quality);
     m_edge_block.assign(std::size_t(edge_block_size) * num_edges(), Scalar(0));
     m_node_coefficient.assign(std::size_t(n), Scalar(0));
+    m_node_blocks.assign(6 * std::size_t(n), Scalar(0));
     m_node_scratch.assign(std::size_t(n), Scalar(0));
     m_energy_scratch.assign(std::size_t(n), Scalar(0));  // energy() reuses it without growing
     m_node_volume_whole = m_node_volume;
@@ -711,6 +712,8 @@ class ContinuumTerm {
                         const Scalar* v4 = nullptr) noexcept {
     if (empty()) return;
     const Scalar h2 = h * h;
+    // The diagonal blocks (add_diagonal_blocks()) in the same passes; diag(A) from them at the end.
+    std::fill(m_node_blocks.begin(), m_node_blocks.end(), Scalar(0));
     for (std::size_t e = 0; e < num_edges(); ++e) {
       const Index i = m_edges[2 * e], j = m_edges[2 * e + 1];
       const Vector3<Scalar> d = row(x, j) - row(x, i);
@@ -726,10 +729,8 @@ class ContinuumTerm {
       const Vector3<Scalar> r = h2 * k * n.dot(row(v, j) - row(v, i)) * n;
       add(rhs, i, r);
       add(rhs, j, -r);
-      for (int c = 0; c < 3; ++c) {
-        diagonal[3 * std::ptrdiff_t(i) + c] += B[3] * n[c] * n[c];
-        diagonal[3 * std::ptrdiff_t(j) + c] += B[3] * n[c] * n[c];
-      }
+      add_block(i, n[0], n[1], n[2], B[3]);
+      add_block(j, n[0], n[1], n[2], B[3]);
     }
     // The element tangents: h^2 c V |sym(Q^T dF)|^2 at this x (add_forces() left F in the slot).
     for (std::size_t k = 0; k < m_dense.size(); ++k) {
@@ -741,7 +742,13 @@ class ContinuumTerm {
       apply_element(k, v, rhs, -m_dense_coefficient[k]);
       for (int a = 0; a < 4; ++a) {
         const Matrix3<Scalar> B = element_block(k, a);
-        for (int c = 0; c < 3; ++c) diagonal[3 * std::ptrdiff_t(m_tets[4 * t + a]) + c] += B(c, c);
+        Scalar* o = &m_node_blocks[6 * std::size_t(m_tets[4 * t + std::size_t(a)])];
+        o[0] += B(0, 0);
+        o[1] += B(1, 1);
+        o[2] += B(2, 2);
+        o[3] += B(0, 1);
+        o[4] += B(0, 2);
+        o[5] += B(1, 2);
       }
     }
     // The Gauss-Newton coefficients (h^2 + h tau) K / V_a.
@@ -773,55 +780,20 @@ class ContinuumTerm {
       const Index* id = &m_tets[4 * t];
       Scalar c(0);
       for (int a = 0; a < 4; ++a) c += m_node_coefficient[std::size_t(id[a])];
-      for (int k = 0; k < 4; ++k) {
-        for (int d = 0; d < 3; ++d) {
-          const Scalar gk = grad(t)[4 * (3 * k + d)] / Scalar(4);
-          diagonal[3 * std::ptrdiff_t(id[k]) + d] += c * gk * gk;
-        }
-      }
+      const Scalar* g = grad(t);
+      for (int k = 0; k < 4; ++k)
+        add_block(id[k], g[4 * (3 * k)], g[4 * (3 * k + 1)], g[4 * (3 * k + 2)], c / Scalar(16));
     }
+    for (Index a = 0; a < m_num_nodes; ++a)
+      for (int c = 0; c < 3; ++c)
+        diagonal[3 * std::ptrdiff_t(a) + c] += m_node_blocks[6 * std::size_t(a) + std::size_t(c)];
   }
 
   /// Adds the 3 x 3 diagonal blocks of the tangent prepared by prepare_implicit() (6 scalars per
   /// node: xx, yy, zz, xy, xz, yz), with the volumetric part per element as in its diagonal.
   void add_diagonal_blocks(Scalar* out) const noexcept {
     if (empty()) return;
-    auto add = [&](Index i, Scalar g0, Scalar g1, Scalar g2, Scalar a) {
-      Scalar* o = out + 6 * std::ptrdiff_t(i);
-      o[0] += a * g0 * g0;
-      o[1] += a * g1 * g1;
-      o[2] += a * g2 * g2;
-      o[3] += a * g0 * g1;
-      o[4] += a * g0 * g2;
-      o[5] += a * g1 * g2;
-    };
-    for (std::size_t e = 0; e < num_edges(); ++e) {
-      const Scalar* B = &m_edge_block[std::size_t(edge_block_size) * e];
-      add(m_edges[2 * e], B[0], B[1], B[2], B[3]);
-      add(m_edges[2 * e + 1], B[0], B[1], B[2], B[3]);
-    }
-    for (std::size_t t = 0; t < m_volume.size(); ++t) {
-      const Index* id = &m_tets[4 * t];
-      Scalar c(0);
-      for (int a = 0; a < 4; ++a) c += m_node_coefficient[std::size_t(id[a])];
-      const Scalar* g = grad(t);
-      for (int k = 0; k < 4; ++k)
-        add(id[k], g[4 * (3 * k)], g[4 * (3 * k + 1)], g[4 * (3 * k + 2)], c / Scalar(16));
-    }
-    // Element tangents.
-    for (std::size_t k = 0; k < m_dense.size(); ++k) {
-      const auto t = std::size_t(m_dense[k]);
-      for (int a = 0; a < 4; ++a) {
-        const Matrix3<Scalar> B = element_block(k, a);
-        Scalar* o = out + 6 * std::ptrdiff_t(m_tets[4 * t + std::size_t(a)]);
-        o[0] += B(0, 0);
-        o[1] += B(1, 1);
-        o[2] += B(2, 2);
-        o[3] += B(0, 1);
-        o[4] += B(0, 2);
-        o[5] += B(1, 2);
-      }
-    }
+    for (std::size_t k = 0; k < m_node_blocks.size(); ++k) out[k] += m_node_blocks[k];
   }
 
   /// y += A_continuum p for the tangent prepared by prepare_implicit(). `p4`: p padded to 4 per
@@ -1442,6 +1414,17 @@ class ContinuumTerm {
     }
   }
 
+  /// Adds a g g^T to node i's diagonal block (m_node_blocks).
+  void add_block(Index i, Scalar g0, Scalar g1, Scalar g2, Scalar a) noexcept {
+    Scalar* o = &m_node_blocks[6 * std::size_t(i)];
+    o[0] += a * g0 * g0;
+    o[1] += a * g1 * g1;
+    o[2] += a * g2 * g2;
+    o[3] += a * g0 * g1;
+    o[4] += a * g0 * g2;
+    o[5] += a * g1 * g2;
+  }
+
   /// One step's J of element t (flutter_change): two reversals in a row of a change larger than
   /// flutter_change mark it.
   void watch_flutter(std::size_t t, Scalar j) noexcept {
@@ -1525,6 +1508,8 @@ class ContinuumTerm {
   static constexpr int edge_block_size = 5;
   std::vector<Scalar> m_edge_block;
   std::vector<Scalar> m_node_coefficient;  // per node
+  // The tangent's 3 x 3 diagonal blocks per node (xx yy zz xy xz yz), from prepare_implicit().
+  std::vector<Scalar> m_node_blocks;
   std::vector<Scalar> m_node_scratch;      // per node
   mutable std::vector<Scalar> m_energy_scratch;
   // The element kernels (build_batches()): inputs, outputs, and the states padded to 4 per node.
