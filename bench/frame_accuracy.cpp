@@ -38,8 +38,16 @@ Run run(const TissueModel<double>& model, double tolerance, bool sleep) {
   io.max_iterations = 1000;
   sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
   collision::ContactSolver<double> contacts(sim.model(), sim.forces());
-  const support::CapsuleProbe probe = support::capsule_probe(model, "body");
-  const Index k = contacts.add_instrument(probe.instrument(0));
+  // The probe presses the body's outermost free sphere after it has sagged for 0.5 s, its tip
+  // 1 +- 1 mm past the sphere's centre (the vertex contact meets sphere centres).
+  support::CapsuleProbe probe = support::capsule_probe(model, "body");
+  const Index k = contacts.add_instrument(probe.instrument(-0.02));  // away while it sags
+  for (int s = 0; s < 500; ++s) {
+    contacts.compute(sim.model(), sim.forces());
+    sim.step(1e-3);
+    contacts.collect(sim.forces());
+  }
+  probe.site.centre = sim.model().positions().row(probe.site.sphere).transpose();
   auto ws = model.skin.make_workspace();
   Run r;
   r.surface = model.skin.rest.vertices;
@@ -51,7 +59,7 @@ Run run(const TissueModel<double>& model, double tolerance, bool sleep) {
     const auto t0 = std::chrono::steady_clock::now();
     for (int s = 0; s < 17; ++s) {
       const double t = double(frame * 17 + s) * 1e-3;
-      probe.press(contacts, k, 0.001 + 0.001 * std::sin(2 * pi * t),
+      probe.press(contacts, k, probe.site.radius + 0.001 + 0.001 * std::sin(2 * pi * t),
                   0.002 * pi * std::cos(2 * pi * t));
       contacts.compute(sim.model(), sim.forces());
       const auto rep = sim.step(1e-3);
