@@ -343,8 +343,8 @@ class ForceModel {
   /// Gershgorin row sum of the links' and elements' rest stiffness, `|V|` (for contact stiffness).
   [[nodiscard]] std::vector<Scalar> node_stiffness(const SphereModel<Scalar>& model) const;
 
-  /// @brief Continuum elements that had the element tangent at the last evaluation (poorly shaped
-  /// or strongly strained ones, Options::element_tangent_quality).
+  /// @brief Continuum elements that had the element tangent at the last evaluation (poorly shaped,
+  /// strongly strained or fluttering ones, Options::element_tangent_quality and flutter_guard).
   [[nodiscard]] Index continuum_element_tangents() const noexcept {
     return Index(m_continuum.num_element_tangents());
   }

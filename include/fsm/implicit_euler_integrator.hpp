@@ -55,12 +55,12 @@ class ImplicitEulerIntegrator final : public Integrator<Scalar> {
     /// the start's set (cheaper; a sphere entering the tool then meets it only in the next step,
     /// and a chattering contact can gain energy).
     int max_contact_passes{3};
-    /// CG's starting guess: the last step's velocity change extrapolated linearly from the two
-    /// steps before (`2 dv_n-1 - dv_n-2`, when both had this step's length), else the last step's
-    /// scaled to this step's length. The solution is the same to the tolerance; the motion of
+    /// CG's starting guess: the velocity change extrapolated linearly from the last two steps'
+    /// (`2 dv_n-1 - dv_n-2`, when both had this step's length), else the last step's scaled to
+    /// this step's length. The solution is the same to the tolerance; the motion of
     /// tissue under a steady or slowly changing load is smooth, so a step then starts nearer it:
-    /// 4.2 instead of 6.2 iterations on the bundled uterus with a probe pressing, 5.7 instead of
-    /// 10.1 on the VHF pelvis (docs/benchmarks.md). Quadratic extrapolation amplified the solver's
+    /// 4.1 instead of 6.2 iterations on the bundled uterus with a probe pressing, 5.5 instead of
+    /// 10.0 on the VHF pelvis (docs/benchmarks.md). Quadratic extrapolation amplified the solver's
     /// own error and needed more iterations than none.
     bool extrapolate_warm_start{true};
   };

@@ -268,7 +268,8 @@ class ContinuumTerm {
     const std::size_t nt = m_quality.size();
     m_poor_shape.assign(nt, 0);
     for (std::size_t t = 0; t < nt; ++t) m_poor_shape[t] = m_quality[t] < q ? 1 : 0;
-    // Which elements have it is decided at every add_forces() (poor shape or strain): room for all.
+    // Which elements have it is decided at every add_forces() (poor shape, strain or flutter):
+    // room for all.
     m_element_tangent = m_poor_shape;
     // (refresh() sizes the per-element state before it calls this.)
     m_edge_factor.assign(nt, Scalar(0));
@@ -284,8 +285,8 @@ class ContinuumTerm {
   [[nodiscard]] Scalar element_tangent_quality() const noexcept {
     return m_element_tangent_quality;
   }
-  /// The elements that have the element tangent at the last add_forces(): those of poor shape
-  /// and those strained past element_tangent_strain.
+  /// The elements that have the element tangent at the last add_forces(): those of poor shape,
+  /// those strained past element_tangent_strain and those found fluttering (flutter_change).
   [[nodiscard]] std::size_t num_element_tangents() const noexcept { return m_dense.size(); }
   /// The elements found fluttering (flutter_change) since the last refresh(): they keep the
   /// element tangent.
