@@ -55,10 +55,13 @@ jacobian: "definite" (default), "symmetric" or "exact".
 tolerance: CG relative residual; max_iterations: CG cap per solve.
 max_contact_passes: solves per step while the set of penetrating contacts changes (1: keep the
 start's set).
-preconditioner: CG's, "block_jacobi" (3 x 3 diagonal blocks; default) or "jacobi".)")
+preconditioner: CG's, "block_jacobi" (3 x 3 diagonal blocks; default) or "jacobi".
+extrapolate_warm_start: CG starts from the velocity change extrapolated from the last two steps
+(default True; False: from the last step's). The same solution to the tolerance, in fewer
+iterations under smooth loading.)")
       .def(py::init([](const std::string& solver, const std::string& jacobian, Scalar tolerance,
                        int max_iterations, int max_contact_passes,
-                       const std::string& preconditioner) {
+                       const std::string& preconditioner, bool extrapolate_warm_start) {
              typename IE::Options o;
              if (preconditioner == "block_jacobi")
                o.preconditioner = IE::Preconditioner::block_jacobi;
@@ -91,11 +94,13 @@ preconditioner: CG's, "block_jacobi" (3 x 3 diagonal blocks; default) or "jacobi
              o.tolerance = tolerance;
              o.max_iterations = max_iterations;
              o.max_contact_passes = max_contact_passes;
+             o.extrapolate_warm_start = extrapolate_warm_start;
              return IE(o);
            }),
            py::arg("solver") = "conjugate_gradient", py::arg("jacobian") = "definite",
            py::arg("tolerance") = 1e-6, py::arg("max_iterations") = 200,
-           py::arg("max_contact_passes") = 3, py::arg("preconditioner") = "block_jacobi")
+           py::arg("max_contact_passes") = 3, py::arg("preconditioner") = "block_jacobi",
+           py::arg("extrapolate_warm_start") = true)
       .def_property_readonly(
           "preconditioner",
           [](const IE& ie) {
@@ -111,7 +116,11 @@ preconditioner: CG's, "block_jacobi" (3 x 3 diagonal blocks; default) or "jacobi
           "CG iteration cap per solve")
       .def_property_readonly(
           "max_contact_passes", [](const IE& ie) { return ie.options().max_contact_passes; },
-          "solves per step while the contact set changes");
+          "solves per step while the contact set changes")
+      .def_property_readonly(
+          "extrapolate_warm_start",
+          [](const IE& ie) { return ie.options().extrapolate_warm_start; },
+          "whether CG starts from the velocity change extrapolated from the last two steps");
 
   m.def("integrator_names", &integrator_names, "Names accepted wherever an integrator is chosen.");
   m.def(

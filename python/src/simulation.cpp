@@ -201,6 +201,16 @@ option.)")
           "|L| effective tear strain per link (the smallest of the link's own and its materials'; "
           "inf = never), a read-only view; assign a whole array to change it until the next "
           "refresh() (fsm.Error for an entry that is not positive).")
+      .def_property_readonly(
+          "element_tangents",
+          [](const Sim& sim) { return sim.forces().continuum_element_tangents(); },
+          "Continuum elements that had the exact-shape element tangent at the last force "
+          "evaluation: poorly shaped (element_tangent_quality), strongly strained or fluttering.")
+      .def_property_readonly(
+          "fluttered_elements",
+          [](const Sim& sim) { return sim.forces().continuum_fluttered_elements(); },
+          "Continuum elements the flutter guard found swinging back and forth from step to step "
+          "(they keep the element tangent; 0 with flutter_guard=False).")
       .def("set_fixed", &Sim::set_fixed, py::arg("node"), py::arg("fixed") = true,
            "Fixes (or frees) a node; a fixed node's velocity is zeroed and it moves only when its "
            "position is written.")

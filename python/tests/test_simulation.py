@@ -51,21 +51,25 @@ def test_integrators_by_name_and_by_class(block):
 
 
 def test_preconditioners_solve_the_same_step(block):
-    """Jacobi and block-Jacobi CG reach the same states (the preconditioner changes only the path
-    to the solution) and the exact LDLT solve's, to the CG tolerance."""
+    """Jacobi and block-Jacobi CG, with and without the extrapolated warm start, reach the same
+    states (they change only the path to the solution) and the exact LDLT solve's, to the CG
+    tolerance."""
     finals = {}
     for name, ie in [("jacobi", fsm.ImplicitEulerIntegrator(preconditioner="jacobi", tolerance=1e-10)),
                      ("block_jacobi", fsm.ImplicitEulerIntegrator(tolerance=1e-10)),
+                     ("no_extrapolation", fsm.ImplicitEulerIntegrator(
+                         tolerance=1e-10, extrapolate_warm_start=False)),
                      ("ldlt", fsm.ImplicitEulerIntegrator(solver="eigen_ldlt"))]:
-        if name != "ldlt":
+        if name in ("jacobi", "block_jacobi"):
             assert ie.preconditioner == name
+        assert ie.extrapolate_warm_start == (name != "no_extrapolation")
         sim = fsm.Simulation(block, integrator=ie)
         for _ in range(50):
             assert sim.step(1e-3).status == "ok"
         finals[name] = sim.model.positions.copy()
     sag = np.abs(finals["ldlt"] - block.positions).max()
     assert sag > 1e-5  # gravity moved it
-    for name in ("jacobi", "block_jacobi"):
+    for name in ("jacobi", "block_jacobi", "no_extrapolation"):
         assert np.abs(finals[name] - finals["ldlt"]).max() < 1e-6 * sag
 
 
@@ -151,6 +155,11 @@ def test_drag_and_element_tangent_quality_options(block):
     assert iterations[0] != iterations[1]
     assert np.allclose(results[0], results[1], atol=1e-6)
     assert np.allclose(results[0], results[2], atol=1e-6)  # the flutter guard off: the same sag
+    # The counts are the force model's: every element with quality 2.0, none fluttered when off.
+    sim = fsm.Simulation(model, element_tangent_quality=2.0, flutter_guard=False)
+    sim.step(1e-3)
+    assert sim.element_tangents == model.num_tetrahedra
+    assert sim.fluttered_elements == 0
     # Drag reaches the forces: in the first 5 ms of sagging the block moves slower with it.
     speed = []
     for drag in (0.0, 1000.0):
