@@ -257,9 +257,8 @@ struct PressedUterus {
       : sim(make(continuum)), solver(sim.model(), sim.forces(), contact_options(stiffness_ratio)) {
     support::CapsuleProbe cp{
         support::outermost_free_sphere(uterus().spheres, uterus().part("body"))};
-    solver.add_instrument(cp.instrument(-0.02));  // 2 cm away while the model sags
-    for (int s = 0; s < 500; ++s) step();
-    cp.site.centre = sim.model().positions().row(cp.site.sphere).transpose();
+    solver.add_instrument(cp.instrument(-0.02));
+    support::sag_then_aim(sim, solver, 0, cp);
     cp.press(solver, 0, cp.site.radius + 0.001);
   }
   // Contacts of the instrument (not between parts) in the last step.

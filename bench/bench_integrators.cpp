@@ -93,7 +93,9 @@ void scale_implicit_step(benchmark::State& state, bool extrapolate) {
       benchmark::Counter(1e-3 * double(steps), benchmark::Counter::kIsRate);
   if (failures) state.SkipWithError("steps failed");
 }
-void BM_ScaleImplicitStep(benchmark::State& state) { scale_implicit_step(state, true); }
+void BM_ScaleImplicitStep(benchmark::State& state) {
+  scale_implicit_step(state, true);
+}
 BENCHMARK(BM_ScaleImplicitStep)
     ->ArgsProduct({{8, 12, 17, 21, 26}, {0, 1}, {1, 2}})
     ->ArgNames({"cells", "continuum", "threads"})

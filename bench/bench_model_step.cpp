@@ -142,11 +142,8 @@ int main(int argc, char** argv) {
       recovered += r.status == StepStatus::recovered;
       return r;
     };
-    for (int s = 0; s < 500; ++s) step();
-    if (probe) {
-      cp.site.centre = sim.model().positions().row(cp.site.sphere).transpose();
-      cp.press(contacts, 0, cp.site.radius + 0.001);
-    }
+    diverged += support::sag_then_aim(sim, contacts, 0, cp);
+    if (probe) cp.press(contacts, 0, cp.site.radius + 0.001);
     for (int s = 0; s < 300; ++s) step();
     diverged_before = diverged;  // while sagging and pressing
     diverged = recovered = 0;    // count the timed steps only

@@ -41,13 +41,8 @@ Run run(const TissueModel<double>& model, double tolerance, bool sleep) {
   // The probe presses the body's outermost free sphere after it has sagged for 0.5 s, its tip
   // 1 +- 1 mm past the sphere's centre (the vertex contact meets sphere centres).
   support::CapsuleProbe probe = support::capsule_probe(model, "body");
-  const Index k = contacts.add_instrument(probe.instrument(-0.02));  // away while it sags
-  for (int s = 0; s < 500; ++s) {
-    contacts.compute(sim.model(), sim.forces());
-    sim.step(1e-3);
-    contacts.collect(sim.forces());
-  }
-  probe.site.centre = sim.model().positions().row(probe.site.sphere).transpose();
+  const Index k = contacts.add_instrument(probe.instrument(-0.02));
+  support::sag_then_aim(sim, contacts, k, probe);
   auto ws = model.skin.make_workspace();
   Run r;
   r.surface = model.skin.rest.vertices;

@@ -1511,7 +1511,7 @@ class ContinuumTerm {
   std::vector<Scalar> m_node_coefficient;  // per node
   // The tangent's 3 x 3 diagonal blocks per node (xx yy zz xy xz yz), from prepare_implicit().
   std::vector<Scalar> m_node_blocks;
-  std::vector<Scalar> m_node_scratch;      // per node
+  std::vector<Scalar> m_node_scratch;  // per node
   mutable std::vector<Scalar> m_energy_scratch;
   // The element kernels (build_batches()): inputs, outputs, and the states padded to 4 per node.
   bool m_simd{true};

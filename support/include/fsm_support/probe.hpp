@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "fsm/collision/contact.hpp"
+#include "fsm/simulation.hpp"
 #include "fsm/tissue_model.hpp"
 
 namespace fsm::support {
@@ -78,6 +79,22 @@ struct CapsuleProbe {
     ins.linear_velocity = -site.outward * depth_rate;
   }
 };
+
+/// @brief Lets `sim` sag for `steps` steps of 1 ms with instrument `k` of `contacts` (the probe's)
+/// held 2 cm outside the probe's site, then aims the probe at the site sphere's sagged centre, so
+/// that press() depths count from where the tissue now is. Returns the steps that did not advance.
+inline int sag_then_aim(Simulation<double>& sim, collision::ContactSolver<double>& contacts,
+                        Index k, CapsuleProbe& probe, int steps = 500) {
+  probe.press(contacts, k, -0.02);
+  int failed = 0;
+  for (int s = 0; s < steps; ++s) {
+    contacts.compute(sim.model(), sim.forces());
+    failed += !sim.step(1e-3).advanced();
+    contacts.collect(sim.forces());
+  }
+  probe.site.centre = sim.model().positions().row(probe.site.sphere).transpose();
+  return failed;
+}
 
 /// @brief A capsule probe at the outermost free sphere of the named part.
 inline CapsuleProbe capsule_probe(const TissueModel<double>& model, const std::string& part,
