@@ -316,10 +316,11 @@ class ForceModel {
   /// on the piecewise-linear penalty, which neither pumps energy into a chattering contact nor lets
   /// a sphere pass in unopposed).
   bool update_contact_set(const SphereModel<Scalar>& model, const Scalar* x_end, Scalar h) noexcept;
-  /// @brief The 3 x 3 diagonal blocks of A for the blocks of prepare_implicit() (block-Jacobi
-  /// preconditioner), 6 scalars per node (xx, yy, zz, xy, xz, yz) into `out` (`6|V|`): mass with
-  /// drag, the links' and elements' blocks on their nodes and the contacts in the solve; fixed
-  /// nodes get the identity. Serial; no allocation.
+  /// @brief The 3 x 3 diagonal blocks of A for the blocks of the last prepare_implicit()
+  /// (block-Jacobi preconditioner), 6 scalars per node (xx, yy, zz, xy, xz, yz) into `out`
+  /// (`6|V|`): mass with drag, the links' and elements' blocks on their nodes (kept by
+  /// prepare_implicit(), which `blocks` must be the output of) and the contacts in the solve;
+  /// fixed nodes get the identity. Serial; no allocation.
   void implicit_diagonal_blocks(const SphereModel<Scalar>& model, const Scalar* blocks,
                                 Scalar* out) const noexcept;
   /// @brief y = A p for the blocks of prepare_implicit(); rows of fixed nodes are zero.
@@ -374,6 +375,8 @@ class ForceModel {
   void pad_states(const Scalar* x, const Scalar* v, Index n) noexcept;
 
   void update_mobility(const SphereModel<Scalar>& model) noexcept;
+  // The mass (with drag) and the force links' blocks summed into m_link_node_blocks.
+  void link_node_blocks(const SphereModel<Scalar>& model, const Scalar* blocks, Scalar h) noexcept;
   void update_ranges(const SphereModel<Scalar>& model) noexcept;
 
   Options m_options;
@@ -400,6 +403,9 @@ class ForceModel {
   std::vector<Scalar> m_element_force;  // |V| x 3 scratch of prepare_implicit
   // prepare_implicit's rhs and diagonal before the contacts, for a re-solve of the same state.
   std::vector<Scalar> m_base_rhs, m_base_diagonal;
+  // Per node, M (1 + h gamma) plus the force links' diagonal blocks (xx yy zz xy xz yz) at the
+  // last prepare_implicit() (implicit_diagonal_blocks()).
+  std::vector<Scalar> m_link_node_blocks;
   Scalar m_base_h{-1};
 };
 

@@ -433,6 +433,7 @@ void ForceModel<Scalar>::refresh(const SphereModel<Scalar>& model) {
   m_element_force.assign(m_continuum.empty() ? 0 : 3 * std::size_t(n), Scalar(0));
   m_base_rhs.assign(3 * std::size_t(n), Scalar(0));
   m_base_diagonal.assign(3 * std::size_t(n), Scalar(0));
+  m_link_node_blocks.assign(6 * std::size_t(n), Scalar(0));
   if constexpr (std::is_same_v<Scalar, double>) {
     m_x4.assign(4 * std::size_t(n), 0.0);
     m_v4.assign(4 * std::size_t(n), 0.0);
@@ -798,25 +799,14 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
     };
     detail::scatter_links(m_pool.get(), model.num_nodes(), model.num_links(), rhs.data(), m_scratch,
                           init, kernel);
-    // Jacobi diagonal: m_i + sum over links of diag(B_l), on both ends.
-    // The drag's Jacobian -gamma m I joins the mass: M (1 + h gamma).
-    auto init_diag = [&](Index i, Scalar* out) {
-      out[0] = out[1] = out[2] = mass[i] * (1 + h * drag);
-    };
-    auto kernel_diag = [&](Index begin, Index end, Scalar* out) {
-      for (Index l = begin; l < end; ++l) {
-        const Scalar* B = blocks + std::ptrdiff_t(implicit_block_size) * l;
-        const std::ptrdiff_t i = 3 * std::ptrdiff_t(L.ij[2 * l]);
-        const std::ptrdiff_t j = 3 * std::ptrdiff_t(L.ij[2 * l + 1]);
-        for (int c = 0; c < 3; ++c) {
-          const Scalar d = B[3] * B[c] * B[c] + B[4];
-          out[i + c] += d;
-          out[j + c] += d;
-        }
-      }
-    };
-    detail::scatter_links(m_pool.get(), model.num_nodes(), model.num_links(), diagonal.data(),
-                          m_scratch, init_diag, kernel_diag);
+    // The links' 3 x 3 diagonal blocks per node, with the mass (the drag's Jacobian -gamma m I
+    // joins it: M (1 + h gamma)), kept for implicit_diagonal_blocks(); diag(A) from them.
+    link_node_blocks(model, blocks, h);
+    {
+      Scalar* d = diagonal.data();
+      for (std::size_t i = 0; i < std::size_t(model.num_nodes()); ++i)
+        for (std::size_t c = 0; c < 3; ++c) d[3 * i + c] = m_link_node_blocks[6 * i + c];
+    }
     if (!m_continuum.empty()) {
       // The elements: h F into the rhs, then their tangent (-h^2 H v into the rhs, diag(A)).
       std::fill(m_element_force.begin(), m_element_force.end(), Scalar(0));
@@ -887,28 +877,19 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
 }
 
 template <typename Scalar>
-void ForceModel<Scalar>::implicit_diagonal_blocks(const SphereModel<Scalar>& model,
-                                                  const Scalar* blocks,
-                                                  Scalar* out) const noexcept {
+void ForceModel<Scalar>::link_node_blocks(const SphereModel<Scalar>& model, const Scalar* blocks,
+                                          Scalar h) noexcept {
   const Index n = model.num_nodes();
   const Scalar* mass = model.masses().data();
-  const Scalar md = Scalar(1) + m_implicit_h * m_options.drag;
+  const Scalar md = Scalar(1) + h * m_options.drag;
+  Scalar* out = m_link_node_blocks.data();
   for (Index i = 0; i < n; ++i) {
     Scalar* o = out + 6 * std::ptrdiff_t(i);
     o[0] = o[1] = o[2] = md * mass[i];
     o[3] = o[4] = o[5] = Scalar(0);
   }
-  // a n n^T + b I on both ends of a link (and of a contact between parts).
-  auto add = [&](Index i, const Scalar* nv, Scalar a, Scalar b) {
-    Scalar* o = out + 6 * std::ptrdiff_t(i);
-    o[0] += a * nv[0] * nv[0] + b;
-    o[1] += a * nv[1] * nv[1] + b;
-    o[2] += a * nv[2] * nv[2] + b;
-    o[3] += a * nv[0] * nv[1];
-    o[4] += a * nv[0] * nv[2];
-    o[5] += a * nv[1] * nv[2];
-  };
-  // The first node of a run of links that share it (the builder sorts links so) sums in registers.
+  // a n n^T + b I on both ends of a link. The first node of a run of links that share it (the
+  // builder sorts links so) sums in registers.
   const Index* ij = model.links().data();
   for (const auto& [begin, end] : m_force_ranges)
     for (Index l = begin; l < end;) {
@@ -928,6 +909,25 @@ void ForceModel<Scalar>::implicit_diagonal_blocks(const SphereModel<Scalar>& mod
       Scalar* o = out + 6 * std::ptrdiff_t(i);
       for (int c = 0; c < 6; ++c) o[c] += acc[c];
     }
+}
+
+template <typename Scalar>
+void ForceModel<Scalar>::implicit_diagonal_blocks(const SphereModel<Scalar>& model,
+                                                  const Scalar* blocks,
+                                                  Scalar* out) const noexcept {
+  (void)blocks;  // their diagonal blocks were kept by prepare_implicit()
+  const Index n = model.num_nodes();
+  std::copy(m_link_node_blocks.begin(), m_link_node_blocks.end(), out);
+  // a n n^T + b I on both ends of a contact between parts.
+  auto add = [&](Index i, const Scalar* nv, Scalar a, Scalar b) {
+    Scalar* o = out + 6 * std::ptrdiff_t(i);
+    o[0] += a * nv[0] * nv[0] + b;
+    o[1] += a * nv[1] * nv[1] + b;
+    o[2] += a * nv[2] * nv[2] + b;
+    o[3] += a * nv[0] * nv[1];
+    o[4] += a * nv[0] * nv[2];
+    o[5] += a * nv[1] * nv[2];
+  };
   m_continuum.add_diagonal_blocks(out);
   for (Index k = 0; k < m_num_contacts; ++k) {
     const PenaltyContact<Scalar>& c = m_contacts[std::size_t(k)];
