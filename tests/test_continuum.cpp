@@ -493,6 +493,67 @@ TEST(Continuum, LightNodeOnASliverStaysStable) {
   }
 }
 
+// The energy check at the end of an implicit step evaluates the elements' forces at the end state
+// and the next step reuses them (ForceModel::Options::reuse_end_forces): the same run to the last
+// bit as evaluating both, through what invalidates the kept forces (an edit of the state between
+// steps, a region falling asleep and waking, a cut), and the reuse does happen.
+TEST(Continuum, EndOfStepForcesAreReusedExactly) {
+  auto run = [](bool reuse, std::vector<StepReport<double>>& reports,
+                std::vector<Positions<double>>& states) {
+    SphereModel<double> m = continuum_block({4, 3, 3}, 0.003);
+    for (Index i = 0; i < m.num_nodes(); ++i)
+      if (std::abs(m.rest_positions()(i, 2)) < 1e-9) m.set_fixed(i);
+    Simulation<double>::Options o;
+    o.forces.reuse_end_forces = reuse;
+    Simulation<double> sim(m, o);
+    const Index top = sim.model().num_nodes() - 1;
+    bool slept = false;
+    for (int k = 0; k < 240; ++k) {
+      if (k == 20) sim.model().velocities().row(top) += V3(0.05, 0, 0).transpose();  // an edit
+      if (k == 40) {  // a cut through the middle
+        Blade<double> b;
+        b.start_a = V3(0.006, -0.001, 0.01);
+        b.start_b = V3(0.006, 0.01, 0.01);
+        b.end_a = V3(0.006, -0.001, 0.004);
+        b.end_b = V3(0.006, 0.01, 0.004);
+        EXPECT_TRUE(sim.cut(b).any());
+      }
+      if (k == 80) {  // then it may sleep, and a load wakes it
+        SleepPolicy<double> p;
+        p.enabled = true;
+        p.sleep_speed = 2e-3;
+        p.sleep_time = 0.02;
+        sim.set_sleep_policy(p);
+      }
+      if (k == 200) sim.external_forces().row(top) = V3(0, 0, -0.02).transpose();
+      reports.push_back(sim.step(1e-3));
+      states.push_back(sim.model().positions());
+      slept = slept || sim.asleep(0);
+    }
+    EXPECT_TRUE(slept) << "the block never fell asleep: the test misses that case";
+    return sim.forces().kept_forces_reused();
+  };
+  std::vector<StepReport<double>> ra, rb;
+  std::vector<Positions<double>> xa, xb;
+  const std::uint64_t reused = run(true, ra, xa);
+  EXPECT_EQ(run(false, rb, xb), 0u);
+  // Reused wherever the state was the checked one: not after the edit, the cut, or sleep.
+  EXPECT_GT(reused, 150u);
+  EXPECT_LT(reused, 239u);
+  ASSERT_EQ(ra.size(), rb.size());
+  for (std::size_t k = 0; k < ra.size(); ++k) {
+    ASSERT_EQ(ra[k].status, rb[k].status) << "step " << k;
+    EXPECT_EQ(ra[k].solver_iterations, rb[k].solver_iterations) << "step " << k;
+    EXPECT_EQ(ra[k].inverted_elements, rb[k].inverted_elements) << "step " << k;
+    if (std::isnan(ra[k].energy)) {
+      EXPECT_TRUE(std::isnan(rb[k].energy)) << "step " << k;
+    } else {
+      EXPECT_EQ(ra[k].energy, rb[k].energy) << "step " << k;
+    }
+    ASSERT_EQ((xa[k] - xb[k]).cwiseAbs().maxCoeff(), 0.0) << "step " << k;
+  }
+}
+
 // An element strained past element_tangent_strain (0.5) gets the element tangent for the step, and
 // a well-shaped one at rest or moderately strained does not.
 TEST(Continuum, StrainedElementsGetTheElementTangent) {

@@ -157,6 +157,12 @@ class ForceModel {
     /// With a smoothed strain: the share of the deviatoric energy kept on each element's own
     /// strain, in [0, 1] (it stabilises the smoothed strains' soft local modes).
     Scalar smoothing_element_share{Scalar(detail::ContinuumTerm<Scalar>::default_element_share)};
+    /// Whether elastic_energy_keeping_forces() (Simulation's energy check at the end of an
+    /// implicit step) takes the continuum elements' energy from a force evaluation at the end
+    /// state, which the next step's first force evaluation then reuses instead of repeating it
+    /// (the element strain only; smoothed strains evaluate the energy alone). The same forces and
+    /// energies to the last bit; off evaluates both, as before (docs/physics.md section 11).
+    bool reuse_end_forces{true};
   };
 
   ForceModel() = default;
@@ -277,6 +283,29 @@ class ForceModel {
   /// elements' neo-Hookean energy.
   [[nodiscard]] Scalar elastic_energy(const SphereModel<Scalar>& model,
                                       const ConstPositionsRef& x) const noexcept;
+  /// @brief elastic_energy() at the model's state, for a check at the end of a step: with
+  /// Options::reuse_end_forces and continuum elements (element strain), the elements' energy comes
+  /// from a force evaluation at the model's (x, v) (their flutter watch included), which the next
+  /// prepare_implicit() uses instead of its own if reuse_kept_forces(true) is called first. No
+  /// allocation.
+  [[nodiscard]] Scalar elastic_energy_keeping_forces(const SphereModel<Scalar>& model) noexcept;
+  /// @brief Whether the next prepare_implicit() may use the forces elastic_energy_keeping_forces()
+  /// kept (the caller vouches that the model's positions and velocities are still those it was
+  /// called at; they are used only if nothing has evaluated or changed the elements since); false
+  /// drops them.
+  void reuse_kept_forces(bool same_state) noexcept {
+    m_kept_armed = same_state && m_kept;
+    if (!same_state) m_kept = false;
+  }
+  /// @brief The continuum elements with \f$J \le 0\f$ at the state of the forces
+  /// elastic_energy_keeping_forces() kept (as inverted_elements() counts them), or -1 if none are
+  /// kept or the elements changed since.
+  [[nodiscard]] Index kept_inverted_elements() const noexcept {
+    return m_kept && m_kept_generation == m_continuum.generation() ? m_continuum.forces_inverted()
+                                                                   : Index(-1);
+  }
+  /// @brief How many prepare_implicit() calls used kept forces instead of evaluating their own.
+  [[nodiscard]] std::uint64_t kept_forces_reused() const noexcept { return m_kept_reused; }
   /// @brief Kinetic energy (J): \f$\frac12\sum_i m_i|\mathbf{v}_i|^2\f$.
   [[nodiscard]] Scalar kinetic_energy(const SphereModel<Scalar>& model,
                                       const ConstPositionsRef& v) const noexcept;
@@ -375,6 +404,9 @@ class ForceModel {
   void pad_states(const Scalar* x, const Scalar* v, Index n) noexcept;
 
   void update_mobility(const SphereModel<Scalar>& model) noexcept;
+  // The force links' energy at positions p (3 |V|).
+  [[nodiscard]] Scalar link_energy(const SphereModel<Scalar>& model,
+                                   const Scalar* p) const noexcept;
   // The mass (with drag) and the force links' blocks summed into m_link_node_blocks.
   void link_node_blocks(const SphereModel<Scalar>& model, const Scalar* blocks, Scalar h) noexcept;
   void update_ranges(const SphereModel<Scalar>& model) noexcept;
@@ -406,6 +438,11 @@ class ForceModel {
   // Per node, M (1 + h gamma) plus the force links' diagonal blocks (xx yy zz xy xz yz) at the
   // last prepare_implicit() (implicit_diagonal_blocks()).
   std::vector<Scalar> m_link_node_blocks;
+  // elastic_energy_keeping_forces(): the elements' forces in m_element_force and their per-step
+  // state are at a step's end state (m_kept, as of the continuum's generation), and the next
+  // prepare_implicit() may use them (m_kept_armed).
+  bool m_kept{false}, m_kept_armed{false};
+  std::uint64_t m_kept_generation{0}, m_kept_reused{0};
   Scalar m_base_h{-1};
 };
 

@@ -207,7 +207,7 @@ class Simulation {
   [[nodiscard]] bool state_matches_saved() const noexcept;
   bool wake_regions() noexcept;
   void update_load() noexcept;
-  void sleep_regions(Scalar dt) noexcept;
+  bool sleep_regions(Scalar dt) noexcept;  // true if a region fell asleep
   void set_region_asleep(Index region, bool asleep) noexcept;
   void apply_topology_change(TopologyChange& change) noexcept;
 
@@ -226,6 +226,8 @@ class Simulation {
   Positions<Scalar> m_sleep_force;  // load (external + contact) when its region fell asleep
   Positions<Scalar> m_load;         // external forces plus the penalty contacts' forces, per node
   Positions<Scalar> m_saved_x, m_saved_v;
+  // The force model kept the elements' forces at the saved state (the last step's energy check).
+  bool m_forces_kept{false};
   Scalar m_energy_reference{0};
   // A cut or a tear removed energy since the reference was taken: the next accepted step takes
   // its end energy as the new reference instead of checking it (a full energy pass on every cut

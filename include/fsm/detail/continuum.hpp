@@ -264,6 +264,7 @@ class ContinuumTerm {
   /// tangent instead of edge springs: 0 = none, above 1 = all (each costs about five times its
   /// edge springs per iteration). Allocates; not real-time.
   void set_element_tangent_quality(Scalar q) {
+    ++m_generation;
     m_element_tangent_quality = q;
     const std::size_t nt = m_quality.size();
     m_poor_shape.assign(nt, 0);
@@ -297,6 +298,7 @@ class ContinuumTerm {
   /// Whether watch_next_forces() watches (default true). Off also forgets the elements found
   /// fluttering. No allocation.
   void set_flutter_guard(bool on) noexcept {
+    ++m_generation;
     m_flutter_guard = on;
     if (on) return;
     std::fill(m_fluttered.begin(), m_fluttered.end(), std::uint8_t(0));
@@ -307,6 +309,7 @@ class ContinuumTerm {
 
   /// Rebuilds everything from the model's continuum regions (allocates; not real-time).
   void refresh(const SphereModel<Scalar>& model) {
+    ++m_generation;
     m_tets.clear();
     m_dm_inv.clear();
     m_volume.clear();
@@ -444,6 +447,7 @@ class ContinuumTerm {
   /// lets a point load through: docs/physics.md section 11). Allocates (the domains); not
   /// real-time.
   void set_smoothing(StrainSmoothing s, Scalar element_share = Scalar(default_element_share)) {
+    ++m_generation;
     m_element_share = std::clamp(element_share, Scalar(0), Scalar(1));
     if (s == m_smoothing) return;
     m_smoothing = s;
@@ -457,7 +461,10 @@ class ContinuumTerm {
 
   /// Whether add_forces() and energy() run the element kernels on SIMD registers where the CPU
   /// has them (default true; the scalar loops are the reference).
-  void set_simd(bool on) noexcept { m_simd = on; }
+  void set_simd(bool on) noexcept {
+    m_simd = on;
+    ++m_generation;
+  }
   /// Whether the next add_forces() and energy() run the element kernels.
   [[nodiscard]] bool simd_active() const noexcept {
     if constexpr (std::is_same_v<Scalar, double>)
@@ -468,6 +475,7 @@ class ContinuumTerm {
   /// Takes the given model tetrahedra out (those of continuum regions not out already), updating
   /// the nodes' volumes and the edges' springs by what each removes: O(removed), no allocation.
   void remove(const Index* tets, std::size_t count) noexcept {
+    ++m_generation;
     for (std::size_t k = 0; k < count; ++k) {
       const Index t = tets[k];
       if (t < 0 || std::size_t(t) >= m_tet_element.size()) continue;
@@ -481,6 +489,7 @@ class ContinuumTerm {
   /// force, its volume leaves its nodes' volumes and its share leaves its edges' springs and
   /// dashpots. No allocation.
   void apply_topology(const std::uint8_t* intact) noexcept {
+    ++m_generation;
     std::fill(m_removed.begin(), m_removed.end(), std::uint8_t(0));
     std::copy(m_node_volume_whole.begin(), m_node_volume_whole.end(), m_node_volume.begin());
     std::copy(m_edge_k_whole.begin(), m_edge_k_whole.end(), m_edge_k.begin());
@@ -509,7 +518,12 @@ class ContinuumTerm {
   /// optional: else the term pads its own copies).
   void add_forces(const Scalar* x, const Scalar* v, Scalar* f, bool viscous = true,
                   const Scalar* x4 = nullptr, const Scalar* v4 = nullptr) noexcept {
-    if (empty()) return;
+    ++m_generation;
+    if (empty()) {
+      m_forces_energy = Scalar(0);
+      m_forces_inverted = 0;
+      return;
+    }
     Scalar* volume_now = m_node_scratch.data();  // current nodal volumes, then pressures
     Scalar* rate = m_node_coefficient.data();    // d(nodal volume)/dt
     std::fill(volume_now, volume_now + m_num_nodes, Scalar(0));
@@ -530,6 +544,12 @@ class ContinuumTerm {
     } else {
       kernel = run_force_kernel(x, viscous ? v : nullptr, x4, v4);
     }
+    // The elastic energy and the inverted elements at x, as energy() and inverted() give them
+    // (the same sums in the same order), for the element strain: ForceModel reuses a force
+    // evaluation at the end of a step for its energy check.
+    const bool by_products = m_smoothing == StrainSmoothing::element;
+    Scalar energy(0);
+    Index inverted = 0;
     for (std::size_t t = 0; t < nt; ++t) {
       if (m_removed[t]) {  // zero gradients: the later passes add nothing for it
         Scalar* g = grad(t);
@@ -549,6 +569,7 @@ class ContinuumTerm {
         dvt = o[simd::tet_out_rate];
         m_state_factor[t] = o[simd::tet_out_state];
         distortion = o[simd::tet_out_distortion];
+        energy += o[simd::tet_out_energy];
       } else {
         Matrix3<Scalar> Ds;
         Vector3<Scalar> g[4];
@@ -561,8 +582,8 @@ class ContinuumTerm {
         have_f = true;
         Matrix3<Scalar> P;
         Scalar stiffening(1), gj(1);
-        deviatoric(F, m_c10[t], m_c10_large[t], m_q_switch[t], Scalar(j_min), &P, &stiffening, &gj,
-                   &distortion);
+        energy += m_volume[t] * deviatoric(F, m_c10[t], m_c10_large[t], m_q_switch[t],
+                                           Scalar(j_min), &P, &stiffening, &gj, &distortion);
         // The I1 curvature of the energy is 2 C10 g(J): stiffer in compression.
         m_state_factor[t] = stiffening * std::max(Scalar(1), gj);
         H = -m_volume[t] * P * dm_inv(t).transpose();
@@ -570,6 +591,7 @@ class ContinuumTerm {
         if (viscous)
           for (int k = 0; k < 4; ++k) dvt += g[k].dot(row(v, id[k]));
       }
+      if (!(vt > Scalar(0))) ++inverted;
       Vector3<Scalar> f0 = Vector3<Scalar>::Zero();
       for (int k = 0; k < 3; ++k) {
         add(f, id[k + 1], H.col(k));
@@ -602,9 +624,13 @@ class ContinuumTerm {
       const Scalar V = m_node_volume[std::size_t(a)];
       if (!(V > Scalar(0))) continue;
       const Scalar K = m_node_bulk[std::size_t(a)];
+      const Scalar d = volume_now[a] / V - Scalar(1);
+      energy += Scalar(0.5) * V * K * d * d;
       volume_now[a] =
           K * ((volume_now[a] / V - Scalar(1)) + m_node_tau[std::size_t(a)] * rate[a] / V);
     }
+    m_forces_energy = by_products ? energy : std::numeric_limits<Scalar>::quiet_NaN();
+    m_forces_inverted = by_products ? inverted : Index(-1);
     // Pass 2: f = -sum_T pbar_T grad v_T, pbar_T the mean of its nodal pressures.
     for (std::size_t t = 0; t < nt; ++t) {
       const Index* id = &m_tets[4 * t];
@@ -639,6 +665,14 @@ class ContinuumTerm {
       add(f, j, -F);
     }
   }
+
+  /// The elastic energy (J) and the number of inverted elements at the x of the last add_forces(),
+  /// as energy() and inverted() give them; NaN and -1 with smoothed strains (not computed).
+  [[nodiscard]] Scalar forces_energy() const noexcept { return m_forces_energy; }
+  [[nodiscard]] Index forces_inverted() const noexcept { return m_forces_inverted; }
+  /// Changes with every add_forces() and every change to the term: the per-step state that
+  /// prepare_implicit() reads is the one of the add_forces() call that left this value.
+  [[nodiscard]] std::uint64_t generation() const noexcept { return m_generation; }
 
   /// Elastic energy (J) at x.
   [[nodiscard]] Scalar energy(const Scalar* x) const noexcept {
@@ -1521,6 +1555,10 @@ class ContinuumTerm {
   std::vector<std::uint8_t> m_reversals, m_fluttered;
   std::size_t m_num_fluttered{0};
   bool m_watch{false}, m_flutter_guard{true};
+  // add_forces()'s by-products and the term's generation (generation()).
+  Scalar m_forces_energy{0};
+  Index m_forces_inverted{0};
+  std::uint64_t m_generation{0};
   std::vector<std::int32_t> m_batch_nodes;
   std::vector<Scalar> m_batch_rest, m_batch_out, m_batch_grad, m_v4, m_y4;
   mutable std::vector<Scalar> m_x4, m_energy_out;

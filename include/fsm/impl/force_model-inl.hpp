@@ -654,19 +654,53 @@ void ForceModel<Scalar>::evaluate(const SphereModel<Scalar>& model, const ConstP
 }
 
 template <typename Scalar>
+Scalar ForceModel<Scalar>::link_energy(const SphereModel<Scalar>& model,
+                                       const Scalar* p) const noexcept {
+  const detail::LinkData<Scalar> L(model);
+  Scalar sum(0);
+  for (const auto& [begin, end] : m_force_ranges)
+    for (Index l = begin; l < end; ++l) {
+      if (!m_force_link[std::size_t(l)]) continue;
+      const std::ptrdiff_t i = 3 * std::ptrdiff_t(L.ij[2 * l]);
+      const std::ptrdiff_t j = 3 * std::ptrdiff_t(L.ij[2 * l + 1]);
+      const Scalar dx = p[j] - p[i], dy = p[j + 1] - p[i + 1], dz = p[j + 2] - p[i + 2];
+      sum += L.law(l).energy(std::sqrt(dx * dx + dy * dy + dz * dz) - L.rest[l]);
+    }
+  return sum;
+}
+
+template <typename Scalar>
 Scalar ForceModel<Scalar>::elastic_energy(const SphereModel<Scalar>& model,
                                           const ConstPositionsRef& x) const noexcept {
-  const detail::LinkData<Scalar> L(model);
   const Scalar* p = x.data();
-  Scalar sum = m_continuum.energy(p);
-  for (Index l = 0; l < model.num_links(); ++l) {
-    if (!m_force_link[std::size_t(l)]) continue;
-    const std::ptrdiff_t i = 3 * std::ptrdiff_t(L.ij[2 * l]);
-    const std::ptrdiff_t j = 3 * std::ptrdiff_t(L.ij[2 * l + 1]);
-    const Scalar dx = p[j] - p[i], dy = p[j + 1] - p[i + 1], dz = p[j + 2] - p[i + 2];
-    sum += L.law(l).energy(std::sqrt(dx * dx + dy * dy + dz * dz) - L.rest[l]);
+  return m_continuum.energy(p) + link_energy(model, p);
+}
+
+template <typename Scalar>
+Scalar ForceModel<Scalar>::elastic_energy_keeping_forces(
+    const SphereModel<Scalar>& model) noexcept {
+  m_kept = m_kept_armed = false;
+  const Scalar* x = model.positions().data();
+  if (m_continuum.empty() || !m_options.reuse_end_forces ||
+      m_options.strain_smoothing != StrainSmoothing::element ||
+      m_element_force.size() != 3 * std::size_t(model.num_nodes()))
+    return elastic_energy(model, model.positions());
+  const Scalar* v = model.velocities().data();
+  const Scalar *x4 = nullptr, *v4 = nullptr;
+  if constexpr (std::is_same_v<Scalar, double>) {
+    if (simd_ready(model.num_nodes())) {
+      pad_states(x, v, model.num_nodes());
+      x4 = m_x4.data();
+      v4 = m_v4.data();
+    }
   }
-  return sum;
+  // As prepare_implicit()'s first pass of a step evaluates them.
+  std::fill(m_element_force.begin(), m_element_force.end(), Scalar(0));
+  m_continuum.watch_next_forces();
+  m_continuum.add_forces(x, v, m_element_force.data(), true, x4, v4);
+  m_kept = true;
+  m_kept_generation = m_continuum.generation();
+  return m_continuum.forces_energy() + link_energy(model, x);
 }
 
 template <typename Scalar>
@@ -809,12 +843,20 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
     }
     if (!m_continuum.empty()) {
       // The elements: h F into the rhs, then their tangent (-h^2 H v into the rhs, diag(A)).
-      std::fill(m_element_force.begin(), m_element_force.end(), Scalar(0));
       const Scalar *x4 = nullptr, *v4 = nullptr;  // padded above for the link kernel
       if constexpr (std::is_same_v<Scalar, double>)
         if (simd_prepare) x4 = m_x4.data(), v4 = m_v4.data();
-      if (!keep_contact_set) m_continuum.watch_next_forces();  // once per step: its first pass
-      m_continuum.add_forces(x, v, m_element_force.data(), true, x4, v4);
+      // The forces kept at the end of the last step, if the caller vouched for the state and
+      // nothing has evaluated or changed the elements since (elastic_energy_keeping_forces()).
+      const bool kept = m_kept_armed && m_kept && !keep_contact_set &&
+                        m_kept_generation == m_continuum.generation();
+      if (!kept) {
+        std::fill(m_element_force.begin(), m_element_force.end(), Scalar(0));
+        if (!keep_contact_set) m_continuum.watch_next_forces();  // once per step: its first pass
+        m_continuum.add_forces(x, v, m_element_force.data(), true, x4, v4);
+      }
+      m_kept_reused += kept ? 1 : 0;
+      m_kept = m_kept_armed = false;  // prepare_implicit() below turns the kept state into its own
       Scalar* r = rhs.data();
       for (std::size_t k = 0; k < m_element_force.size(); ++k) r[k] += h * m_element_force[k];
       m_continuum.prepare_implicit(x, v, h, r, diagonal.data(), v4);

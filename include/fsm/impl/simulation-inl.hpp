@@ -207,7 +207,7 @@ bool Simulation<Scalar>::wake_regions() noexcept {
 
 // After an accepted step: regions quiet for long enough, with no load, fall asleep.
 template <typename Scalar>
-void Simulation<Scalar>::sleep_regions(Scalar dt) noexcept {
+bool Simulation<Scalar>::sleep_regions(Scalar dt) noexcept {
   bool changed = false;
   update_load();
   const auto v = m_model.velocities();
@@ -227,6 +227,7 @@ void Simulation<Scalar>::sleep_regions(Scalar dt) noexcept {
     }
   }
   if (changed) m_forces.set_asleep(m_node_asleep, m_model);
+  return changed;
 }
 
 template <typename Scalar>
@@ -309,12 +310,14 @@ template <typename Scalar>
 void Simulation<Scalar>::save_state() noexcept {
   m_saved_x = m_model.positions();
   m_saved_v = m_model.velocities();
+  m_forces_kept = false;  // step() sets it again where the kept forces are at this state
 }
 
 template <typename Scalar>
 void Simulation<Scalar>::restore_state() noexcept {
   m_model.positions() = m_saved_x;
   m_model.velocities() = m_saved_v;
+  m_forces_kept = false;
 }
 
 template <typename Scalar>
@@ -355,6 +358,10 @@ StepReport<Scalar> Simulation<Scalar>::step(Scalar dt) noexcept {
     if (policy.check_energy) reset_energy_reference();
   }
   if (m_options.sleep.enabled && wake_regions()) m_forces.set_asleep(m_node_asleep, m_model);
+  // The elements' forces kept by the last step's energy check are at this very state unless it
+  // was edited (save_state() above) or changed since (ForceModel checks its own side).
+  m_forces.reuse_kept_forces(m_forces_kept);
+  const bool keep_forces = m_integrator->implicit();
   if (!m_integrator->implicit())
     report.softened_contacts = m_forces.limit_contact_stiffness(m_model, dt);
   const Scalar contact_time = m_forces.contact_time();
@@ -380,7 +387,12 @@ StepReport<Scalar> Simulation<Scalar>::step(Scalar dt) noexcept {
       // taken at their end-of-step force, an upper bound for a contact that pushes harder as it
       // is pressed.
       work = ext.cwiseProduct(x - m_saved_x).sum() + m_forces.contact_work(m_model, m_saved_x);
-      energy = total_energy();
+      // The elements' energy from a force evaluation at the end state, which the next implicit
+      // step reuses (ForceModel::Options::reuse_end_forces).
+      energy = keep_forces ? m_forces.kinetic_energy(m_model, v) +
+                                 m_forces.elastic_energy_keeping_forces(m_model) +
+                                 m_forces.gravity_energy(m_model, x)
+                           : total_energy();
       if (m_reference_stale) {  // after a cut or a tear: this energy is the new reference
         good = std::isfinite(energy);
         if (good) {
@@ -399,15 +411,21 @@ StepReport<Scalar> Simulation<Scalar>::step(Scalar dt) noexcept {
     if (good) {
       m_external_work += work;
       m_time += dt;
-      if (m_options.sleep.enabled) sleep_regions(dt);
+      // A region falling asleep zeroes its velocities: the kept forces are then not at this state.
+      bool kept = keep_forces && policy.check_energy;
+      if (m_options.sleep.enabled && sleep_regions(dt)) kept = false;
       if (m_topology.tears()) {
         report.torn = m_topology.tear(m_model);
         apply_topology_change(report.torn);
+        kept = false;
       }
       save_state();
+      m_forces_kept = kept;
       report.status = level == 0 ? StepStatus::ok : StepStatus::recovered;
       report.energy = energy;
-      report.inverted_elements = m_forces.inverted_elements(x);
+      // From the kept evaluation unless the elements changed since (then -1).
+      const Index inverted = m_forces.kept_inverted_elements();
+      report.inverted_elements = inverted >= 0 ? inverted : m_forces.inverted_elements(x);
       return report;
     }
     restore_state();

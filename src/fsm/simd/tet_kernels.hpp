@@ -167,6 +167,7 @@ void tet_forces(const std::int32_t* nodes, const double* rest, const double* x4,
     rate.store_unaligned(o + tet_out_rate);
     (e.stiffening * xsimd::max(B(1.0), e.g)).store_unaligned(o + tet_out_state);
     e.q.store_unaligned(o + tet_out_distortion);
+    (V * e.W).store_unaligned(o + tet_out_energy);
   }
 }
 
