@@ -414,6 +414,7 @@ class ContinuumTerm {
     m_watch = false;
     set_element_tangent_quality(m_element_tangent_quality);
     m_edge_block.assign(std::size_t(edge_block_size) * num_edges(), Scalar(0));
+    m_edge_rate.assign(num_edges(), Scalar(0));
     m_node_coefficient.assign(std::size_t(n), Scalar(0));
     m_node_blocks.assign(6 * std::size_t(n), Scalar(0));
     m_node_scratch.assign(std::size_t(n), Scalar(0));
@@ -592,12 +593,10 @@ class ContinuumTerm {
           for (int k = 0; k < 4; ++k) dvt += g[k].dot(row(v, id[k]));
       }
       if (!(vt > Scalar(0))) ++inverted;
-      Vector3<Scalar> f0 = Vector3<Scalar>::Zero();
-      for (int k = 0; k < 3; ++k) {
-        add(f, id[k + 1], H.col(k));
-        f0 -= H.col(k);
+      if (!kernel) {  // H where pass 2 reads it (the kernel left it there)
+        Scalar* o = &m_batch_out[std::size_t(simd::tet_out_stride) * (t / 4) + t % 4];
+        for (int k = 0; k < 9; ++k) o[4 * k] = H(k % 3, k / 3);
       }
-      add(f, id[0], f0);
       const bool strained = distortion > Scalar(element_tangent_strain) ||
                             std::abs(vt / m_volume[t] - Scalar(1)) > Scalar(element_tangent_strain);
       if (m_watch) watch_flutter(t, vt / m_volume[t]);
@@ -631,39 +630,58 @@ class ContinuumTerm {
     }
     m_forces_energy = by_products ? energy : std::numeric_limits<Scalar>::quiet_NaN();
     m_forces_inverted = by_products ? inverted : Index(-1);
-    // Pass 2: f = -sum_T pbar_T grad v_T, pbar_T the mean of its nodal pressures.
+    // Pass 2: f = sum_T (H_T - pbar_T grad v_T), pbar_T the mean of its nodal pressures, in one
+    // scatter (H's columns are the forces on corners 1-3, corner 0 gets minus their sum).
     for (std::size_t t = 0; t < nt; ++t) {
       const Index* id = &m_tets[4 * t];
+      if (m_removed[t]) {
+        m_pressure[t] = m_edge_factor[t] = Scalar(0);
+        continue;
+      }
       const Scalar* g = grad(t);
+      const Scalar* o = &m_batch_out[std::size_t(simd::tet_out_stride) * (t / 4) + t % 4];
       const Scalar p =
-          m_removed[t]
-              ? Scalar(0)
-              : (volume_now[id[0]] + volume_now[id[1]] + volume_now[id[2]] + volume_now[id[3]]) /
-                    Scalar(4);
+          (volume_now[id[0]] + volume_now[id[1]] + volume_now[id[2]] + volume_now[id[3]]) /
+          Scalar(4);
       m_pressure[t] = p;
-      m_edge_factor[t] = m_element_tangent[t] || m_removed[t]
+      m_edge_factor[t] = m_element_tangent[t]
                              ? Scalar(0)
                              : m_state_factor[t] + m_pressure_share[t] * std::abs(p) / m_c10[t];
-      for (int k = 0; k < 4; ++k) {
+      Scalar h0[3] = {0, 0, 0};
+      for (int k = 1; k < 4; ++k) {
         Scalar* q = f + 3 * std::ptrdiff_t(id[k]);
-        q[0] -= p * g[4 * (3 * k)];
-        q[1] -= p * g[4 * (3 * k + 1)];
-        q[2] -= p * g[4 * (3 * k + 2)];
+        for (int c = 0; c < 3; ++c) {
+          const Scalar hk = o[4 * (c + 3 * (k - 1))];
+          h0[c] -= hk;
+          q[c] += hk - p * g[4 * (3 * k + c)];
+        }
       }
+      Scalar* q = f + 3 * std::ptrdiff_t(id[0]);
+      for (int c = 0; c < 3; ++c) q[c] += h0[c] - p * g[4 * c];
     }
     if (!viscous) return;
-    // Deviatoric viscosity: dashpots tau k_e along the edges.
+    // Deviatoric viscosity: dashpots tau k_e along the edges. Each edge's direction and rate of
+    // extension are kept for prepare_implicit() at this state (m_edge_block, m_edge_rate).
     for (std::size_t e = 0; e < num_edges(); ++e) {
       const Index i = m_edges[2 * e], j = m_edges[2 * e + 1];
       const Vector3<Scalar> d = row(x, j) - row(x, i);
       const Scalar l = d.norm();
-      if (!(l > Scalar(0))) continue;
+      Scalar* B = &m_edge_block[std::size_t(edge_block_size) * e];
+      if (!(l > Scalar(0))) {
+        B[0] = B[1] = B[2] = m_edge_rate[e] = Scalar(0);
+        continue;
+      }
       const Vector3<Scalar> n = d / l;
-      const Scalar c = m_edge_tau[e] * m_edge_k[e];
-      const Vector3<Scalar> F = c * n.dot(row(v, j) - row(v, i)) * n;
+      const Scalar rate = n.dot(row(v, j) - row(v, i));
+      B[0] = n[0];
+      B[1] = n[1];
+      B[2] = n[2];
+      m_edge_rate[e] = rate;
+      const Vector3<Scalar> F = m_edge_tau[e] * m_edge_k[e] * rate * n;
       add(f, i, F);
       add(f, j, -F);
     }
+    m_edge_state_generation = m_generation;
   }
 
   /// The elastic energy (J) and the number of inverted elements at the x of the last add_forces(),
@@ -749,24 +767,31 @@ class ContinuumTerm {
     const Scalar h2 = h * h;
     // The diagonal blocks (add_diagonal_blocks()) in the same passes; diag(A) from them at the end.
     std::fill(m_node_blocks.begin(), m_node_blocks.end(), Scalar(0));
+    // The edges' directions and rates of extension: kept by a viscous add_forces() at this x, v.
+    const bool kept = m_edge_state_generation == m_generation;
     for (std::size_t e = 0; e < num_edges(); ++e) {
       const Index i = m_edges[2 * e], j = m_edges[2 * e + 1];
-      const Vector3<Scalar> d = row(x, j) - row(x, i);
-      const Scalar l = d.norm();
-      const Vector3<Scalar> n = l > Scalar(0) ? Vector3<Scalar>(d / l) : Vector3<Scalar>::Zero();
       Scalar* B = &m_edge_block[std::size_t(edge_block_size) * e];
-      B[0] = n[0];
-      B[1] = n[1];
-      B[2] = n[2];
+      if (!kept) {
+        const Vector3<Scalar> d = row(x, j) - row(x, i);
+        const Scalar l = d.norm();
+        const Vector3<Scalar> n = l > Scalar(0) ? Vector3<Scalar>(d / l) : Vector3<Scalar>::Zero();
+        B[0] = n[0];
+        B[1] = n[1];
+        B[2] = n[2];
+        m_edge_rate[e] = n.dot(row(v, j) - row(v, i));
+      }
+      const Vector3<Scalar> n(B[0], B[1], B[2]);
       const Scalar k = tangent_margin * edge_stiffness(e);
       B[3] = h2 * k + h * m_edge_tau[e] * m_edge_k[e];
       // rhs: the stiffness part only (damping is in the forces): -h^2 k n n^T (v_i - v_j) on i.
-      const Vector3<Scalar> r = h2 * k * n.dot(row(v, j) - row(v, i)) * n;
+      const Vector3<Scalar> r = h2 * k * m_edge_rate[e] * n;
       add(rhs, i, r);
       add(rhs, j, -r);
       add_block(i, n[0], n[1], n[2], B[3]);
       add_block(j, n[0], n[1], n[2], B[3]);
     }
+    ++m_generation;  // the F slots below become rotations: the state is this call's now
     // The element tangents: h^2 c V |sym(Q^T dF)|^2 at this x (add_forces() left F in the slot).
     for (std::size_t k = 0; k < m_dense.size(); ++k) {
       const auto t = std::size_t(m_dense[k]);
@@ -1542,7 +1567,9 @@ class ContinuumTerm {
   // edge_block_size per edge: n, (h^2 + h tau) k and 0 (a link's block, simd_links.hpp).
   static constexpr int edge_block_size = 5;
   std::vector<Scalar> m_edge_block;
-  std::vector<Scalar> m_node_coefficient;  // per node
+  std::vector<Scalar> m_edge_rate;  // per edge: n . (v_j - v_i) at the last viscous add_forces()
+  std::uint64_t m_edge_state_generation{~std::uint64_t(0)};  // m_generation when they were kept
+  std::vector<Scalar> m_node_coefficient;                    // per node
   // The tangent's 3 x 3 diagonal blocks per node (xx yy zz xy xz yz), from prepare_implicit().
   std::vector<Scalar> m_node_blocks;
   std::vector<Scalar> m_node_scratch;  // per node
