@@ -39,7 +39,7 @@ int main(int argc, char** argv) {
   double element_tangent_quality = ForceModel<double>::Options{}.element_tangent_quality;
   double detection_margin = collision::ContactOptions<double>{}.detection_margin;
   bool probe = true, json = false, gravity_y = false, simd = true, flutter_guard = true,
-       extrapolate = true;
+       extrapolate = true, reuse = true;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&]() -> std::string {
@@ -73,6 +73,8 @@ int main(int argc, char** argv) {
       flutter_guard = false;
     else if (a == "--no-extrapolation")
       extrapolate = false;
+    else if (a == "--no-reuse-end-forces")
+      reuse = false;
     else if (a == "--detection-margin")
       detection_margin = std::atof(value().c_str());
     else if (a == "--json")
@@ -85,7 +87,8 @@ int main(int argc, char** argv) {
           "usage: %s MODEL.fsm [--law links|continuum] [--threads N] [--tolerance TOL] "
           "[--steps N] [--no-probe] [--continuum-part NAME] "
           "[--element-tangent-quality Q] [--smoothing element|face|edge|node] [--gravity-y] "
-          "[--no-simd] [--no-flutter-guard] [--no-extrapolation] [--detection-margin F] [--json]\n",
+          "[--no-simd] [--no-flutter-guard] [--no-extrapolation] [--no-reuse-end-forces] "
+          "[--detection-margin F] [--json]\n",
           argv[0]);
       return 2;
     }
@@ -116,6 +119,7 @@ int main(int argc, char** argv) {
     so.forces.threads = threads;
     so.forces.simd = simd;
     so.forces.flutter_guard = flutter_guard;
+    so.forces.reuse_end_forces = reuse;
     so.forces.element_tangent_quality = element_tangent_quality;
     so.forces.strain_smoothing = smoothing == "face"   ? StrainSmoothing::face
                                  : smoothing == "edge" ? StrainSmoothing::edge
@@ -177,15 +181,16 @@ int main(int argc, char** argv) {
           "\"p50_us\": %.1f, \"p99_us\": %.1f, \"max_us\": %.1f, \"cg_iterations\": %.2f, "
           "\"recovered\": %ld, \"diverged\": %ld, \"diverged_before_timing\": %ld, "
           "\"element_tangent_quality\": %g, \"element_tangents\": %d, \"fluttered\": %d, "
-          "\"flutter_guard\": %s, \"extrapolated_warm_start\": %s, \"gravity\": \"%s\", "
-          "\"smoothing\": \"%s\"}\n",
+          "\"flutter_guard\": %s, \"extrapolated_warm_start\": %s, \"reuse_end_forces\": %s, "
+          "\"gravity\": \"%s\", \"smoothing\": \"%s\"}\n",
           path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
           int(sim.model().num_tetrahedra()), law.c_str(), threads, tolerance,
           probe ? "true" : "false", int(probe_contacts), int(contacts.num_contacts()), steps,
           mean * 1e6, pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it, recovered, diverged,
           diverged_before, element_tangent_quality, int(sim.forces().continuum_element_tangents()),
           int(sim.forces().continuum_fluttered_elements()), flutter_guard ? "true" : "false",
-          extrapolate ? "true" : "false", gravity_y ? "-y" : "-z", smoothing.c_str());
+          extrapolate ? "true" : "false", reuse ? "true" : "false", gravity_y ? "-y" : "-z",
+          smoothing.c_str());
     else
       std::printf(
           "%s: %d spheres, %d links, %d tetrahedra; %s law (%s strain), %d thread(s), CG to %g; "

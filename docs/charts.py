@@ -158,18 +158,18 @@ def model_step_chart():
     for r in rows:
         if r["diverged"]:
             continue
-        # 0: today's defaults; 1: without the extrapolated warm start; 2: without the flutter
-        # guard either (the continuum law as it was before both).
-        variant = (0 if r.get("extrapolated_warm_start", True) else
-                   1 if r.get("flutter_guard", True) else 2)
+        # 0: today's defaults; 1: without the reuse of the energy check's force evaluation;
+        # 2: the previous session's step (2026-11-26, its defaults), kept for the comparison.
+        variant = (2 if r.get("session") == "2026-11-26" else
+                   1 if not r.get("reuse_end_forces", True) else 0)
         series.setdefault((r["law"], r["threads"], variant), []).append(r)
-    labels = {1: "no extrapolated warm start", 2: "neither it nor the flutter guard"}
+    labels = {1: "without reusing the check's forces", 2: "on 2026-11-26"}
     for (law, threads, variant), pts in sorted(series.items()):
         pts.sort(key=lambda r: r["spheres"])
         style = {"color": "tab:purple" if law == "continuum" else "tab:green",
                  "linestyle": "-" if threads == 1 else "--", "marker": "o"}
         name = f"{law}, {threads} thread{'s' if threads > 1 else ''}"
-        if variant:  # the step before this session's two changes: mean only
+        if variant:  # mean only
             style.update(linestyle=":" if variant == 1 else (0, (1, 4)),
                          marker="x" if variant == 1 else "+")
             ax.plot([r["spheres"] for r in pts], [r["mean_us"] for r in pts], alpha=0.7,
@@ -182,7 +182,7 @@ def model_step_chart():
     seen = set()
     for r in rows:
         if (r["model"] not in seen and r["law"] == "links" and r["threads"] == 1
-                and r.get("extrapolated_warm_start", True)):
+                and "session" not in r):
             seen.add(r["model"])
             ax.annotate(r["model"].split(" (")[0], xy=(r["spheres"], r["mean_us"]),
                         xytext=(-20, -18), textcoords="offset points", fontsize=7)
@@ -190,6 +190,8 @@ def model_step_chart():
     ax.text(700, 1050, "1 kHz budget", fontsize=7)
     ax.axhline(400, color="black", linewidth=0.6, linestyle=":")
     ax.text(700, 420, "scale issue's pelvis target (400 us)", fontsize=7)
+    ax.plot([660, 730], [300, 300], color="tab:purple", linewidth=0.8)
+    ax.text(740, 290, "fidelity issue's uterus continuum target (300 us)", fontsize=7)
     ax.set_yscale("log")
     ax.set_xlim(600, 2050)
     ax.set_xlabel("spheres")

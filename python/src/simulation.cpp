@@ -72,7 +72,7 @@ void define_simulation(py::module_& m) {
 Simulation(model, integrator="implicit_euler", gravity=(0, 0, -9.81), damping="along_link",
            threads=1, check_energy=True, energy_tolerance=1.0, max_substep_halvings=0,
            drag=0.0, element_tangent_quality=0.3, strain_smoothing="element",
-           smoothing_element_share=0.1, flutter_guard=True)
+           smoothing_element_share=0.1, flutter_guard=True, reuse_end_forces=True)
 
 The model is copied in; sim.model is the simulated one. integrator is a name from
 fsm.integrator_names() or an fsm.Integrator instance (copied). drag (1/s) is the surroundings'
@@ -84,7 +84,9 @@ tetrahedron's own), or averaged over the tetrahedra at each "face", "edge" or "n
 closer to the continuum under bulk loads, softer under a point load; docs/physics.md section 11),
 with smoothing_element_share of the energy kept on each element's own strain. flutter_guard:
 a continuum element whose volume swings back and forth from step to step gets the element tangent
-from then on (False: the negative control). A
+from then on (False: the negative control). reuse_end_forces: the energy check at the end of an
+implicit step evaluates the continuum elements' forces there, and the next step reuses them (the
+same run to the last bit; False evaluates both). A
 diverging step is rolled back and reported, never left as NaN. Raises fsm.Error for a bad model or
 option.)")
       .def(py::init([](const SphereModel<Scalar>& model, const py::object& integrator,
@@ -92,13 +94,14 @@ option.)")
                        bool check_energy, Scalar energy_tolerance, int max_substep_halvings,
                        Scalar drag, Scalar element_tangent_quality,
                        const std::string& strain_smoothing, Scalar smoothing_element_share,
-                       bool flutter_guard) {
+                       bool flutter_guard, bool reuse_end_forces) {
              typename Sim::Options o;
              o.forces.strain_smoothing = to_smoothing(strain_smoothing);
              o.forces.smoothing_element_share = smoothing_element_share;
              o.forces.drag = drag;
              o.forces.element_tangent_quality = element_tangent_quality;
              o.forces.flutter_guard = flutter_guard;
+             o.forces.reuse_end_forces = reuse_end_forces;
              o.forces.gravity = gravity;
              o.forces.damping = to_damping(damping);
              o.forces.threads = threads;
@@ -113,7 +116,7 @@ option.)")
            py::arg("energy_tolerance") = 1.0, py::arg("max_substep_halvings") = 0,
            py::arg("drag") = 0.0, py::arg("element_tangent_quality") = 0.3,
            py::arg("strain_smoothing") = "element", py::arg("smoothing_element_share") = 0.1,
-           py::arg("flutter_guard") = true)
+           py::arg("flutter_guard") = true, py::arg("reuse_end_forces") = true)
       .def("step", &Sim::step, py::arg("dt"), py::call_guard<py::gil_scoped_release>(),
            "Advances by dt seconds; returns a StepReport. Never raises.")
       .def(
