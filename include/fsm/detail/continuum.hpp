@@ -416,6 +416,7 @@ class ContinuumTerm {
     m_edge_block.assign(std::size_t(edge_block_size) * num_edges(), Scalar(0));
     m_edge_rate.assign(num_edges(), Scalar(0));
     m_node_coefficient.assign(std::size_t(n), Scalar(0));
+    m_node_rate.assign(std::size_t(n), Scalar(0));
     m_node_blocks.assign(6 * std::size_t(n), Scalar(0));
     m_node_scratch.assign(std::size_t(n), Scalar(0));
     m_energy_scratch.assign(std::size_t(n), Scalar(0));  // energy() reuses it without growing
@@ -526,7 +527,7 @@ class ContinuumTerm {
       return;
     }
     Scalar* volume_now = m_node_scratch.data();  // current nodal volumes, then pressures
-    Scalar* rate = m_node_coefficient.data();    // d(nodal volume)/dt
+    Scalar* rate = m_node_rate.data();           // d(nodal volume)/dt
     std::fill(volume_now, volume_now + m_num_nodes, Scalar(0));
     std::fill(rate, rate + m_num_nodes, Scalar(0));
     const std::size_t nt = m_volume.size();
@@ -681,7 +682,7 @@ class ContinuumTerm {
       add(f, i, F);
       add(f, j, -F);
     }
-    m_edge_state_generation = m_generation;
+    m_rate_generation = m_generation;
   }
 
   /// The elastic energy (J) and the number of inverted elements at the x of the last add_forces(),
@@ -767,8 +768,9 @@ class ContinuumTerm {
     const Scalar h2 = h * h;
     // The diagonal blocks (add_diagonal_blocks()) in the same passes; diag(A) from them at the end.
     std::fill(m_node_blocks.begin(), m_node_blocks.end(), Scalar(0));
-    // The edges' directions and rates of extension: kept by a viscous add_forces() at this x, v.
-    const bool kept = m_edge_state_generation == m_generation;
+    // The edges' directions and rates of extension, and the nodal volumes' rates: kept by a
+    // viscous add_forces() at this x, v.
+    const bool kept = m_rate_generation == m_generation;
     for (std::size_t e = 0; e < num_edges(); ++e) {
       const Index i = m_edges[2 * e], j = m_edges[2 * e + 1];
       Scalar* B = &m_edge_block[std::size_t(edge_block_size) * e];
@@ -792,6 +794,7 @@ class ContinuumTerm {
       add_block(j, n[0], n[1], n[2], B[3]);
     }
     ++m_generation;  // the F slots below become rotations: the state is this call's now
+    if (kept) m_rate_generation = m_generation;
     // The element tangents: h^2 c V |sym(Q^T dF)|^2 at this x (add_forces() left F in the slot).
     for (std::size_t k = 0; k < m_dense.size(); ++k) {
       const auto t = std::size_t(m_dense[k]);
@@ -826,13 +829,14 @@ class ContinuumTerm {
       }
     }
     if (!simd_active()) v4 = nullptr;
+    // (grad v_a . v is the nodal volume's rate add_forces() kept: no first pass then.)
     apply_volumetric(
         v, rhs,
         [&](Index a) {
           const Scalar V = m_node_volume[std::size_t(a)];
           return V > Scalar(0) ? -h2 * m_node_bulk[std::size_t(a)] / V : Scalar(0);
         },
-        v4);
+        v4, kept ? m_node_rate.data() : nullptr);
     // diag(H_vol)_i = sum_a c_a (d v_a / d x_i)^2, d v_a / d x_i = sum_{T at a, i} g_{T,i} / 4.
     // Computed per element and node pair (a, i) of the element: an upper bound of the exact
     // diagonal's 1-ring sums would need the ring; this per-element sum is what Jacobi needs.
@@ -1503,18 +1507,22 @@ class ContinuumTerm {
 
   // y += sum_a coefficient(a) (grad v_a . p) grad v_a, with the gradients of prepare_implicit().
   // On the SIMD kernels when `p4` (p padded to 4 per node) is given and the CPU has them.
+  // `spread`: grad v_a . p for every node a, known already (then the first pass is skipped).
   template <typename Coefficient>
   void apply_volumetric(const Scalar* p, Scalar* y, Coefficient coefficient,
-                        const Scalar* p4 = nullptr) noexcept {
+                        const Scalar* p4 = nullptr, const Scalar* spread_s = nullptr) noexcept {
     Scalar* s = m_node_scratch.data();
-    std::fill(s, s + m_num_nodes, Scalar(0));
+    if (spread_s)
+      std::copy(spread_s, spread_s + m_num_nodes, s);
+    else
+      std::fill(s, s + m_num_nodes, Scalar(0));
     if constexpr (std::is_same_v<Scalar, double>) {
       const auto spread = simd::tet_spread_kernel();
       const auto gather = simd::tet_gather_kernel();
       if (p4 && simd_active() && spread && gather) {
         const auto nb = std::int32_t(m_batch_nodes.size() / 16);
         const auto nt = std::int32_t(m_volume.size());
-        spread(m_batch_nodes.data(), m_batch_grad.data(), p4, s, 0, nb, nt);
+        if (!spread_s) spread(m_batch_nodes.data(), m_batch_grad.data(), p4, s, 0, nb, nt);
         for (Index a = 0; a < m_num_nodes; ++a) s[a] *= coefficient(a);
         std::fill(m_y4.begin(), m_y4.end(), 0.0);
         gather(m_batch_nodes.data(), m_batch_grad.data(), s, m_y4.data(), 4, 0, nb, nt);
@@ -1524,7 +1532,7 @@ class ContinuumTerm {
       }
     }
     (void)p4;
-    volumetric_spread(0, m_volume.size(), p, s);
+    if (!spread_s) volumetric_spread(0, m_volume.size(), p, s);
     for (Index a = 0; a < m_num_nodes; ++a) s[a] *= coefficient(a);
     volumetric_gather(0, m_volume.size(), s, y);
   }
@@ -1568,8 +1576,9 @@ class ContinuumTerm {
   static constexpr int edge_block_size = 5;
   std::vector<Scalar> m_edge_block;
   std::vector<Scalar> m_edge_rate;  // per edge: n . (v_j - v_i) at the last viscous add_forces()
-  std::uint64_t m_edge_state_generation{~std::uint64_t(0)};  // m_generation when they were kept
-  std::vector<Scalar> m_node_coefficient;                    // per node
+  std::vector<Scalar> m_node_rate;  // per node: d(nodal volume)/dt, the same
+  std::uint64_t m_rate_generation{~std::uint64_t(0)};  // m_generation when they were kept
+  std::vector<Scalar> m_node_coefficient;              // per node
   // The tangent's 3 x 3 diagonal blocks per node (xx yy zz xy xz yz), from prepare_implicit().
   std::vector<Scalar> m_node_blocks;
   std::vector<Scalar> m_node_scratch;  // per node
