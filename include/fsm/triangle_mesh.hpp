@@ -66,7 +66,7 @@ void compute_vertex_normals(const Eigen::Ref<const Positions<Scalar>>& vertices,
   }
   for (Index v = 0; v < Index(normals.rows()); ++v) {
     const Scalar len = normals.row(v).norm();
-    if (len > Scalar(0)) normals.row(v) /= len;
+    if (len > Scalar(0)) normals.row(v) *= Scalar(1) / len;  // one division, not three
   }
 }
 

@@ -106,7 +106,7 @@ void Skin<Scalar>::evaluate(const Eigen::Ref<const Positions<Scalar>>& x, Worksp
       Q qa = ws.rotation.row(a).transpose(), qb = ws.rotation.row(b).transpose();
       if (qa.dot(qb) < Scalar(0)) qb = -qb;  // same hemisphere: the short way round
       Q q = w[0] * qa + w[1] * qb;
-      q /= q.norm();
+      q *= Scalar(1) / q.norm();
       out.row(v) = (p + detail::rotate<Scalar>(q, offsets.row(v).transpose())).transpose();
     }
   }

@@ -302,17 +302,21 @@ void TriangleBvh<Scalar>::refit_boxes(
   // Children come after their parent, so a reverse sweep sees both children before the parent.
   for (size_t n = m_nodes.size(); n-- > 0;) {
     Node& node = m_nodes[n];
-    if (node.is_leaf()) {
-      for (Index i = node.first; i < node.first + node.count; ++i)
-        for (int k = 0; k < 3; ++k)
-          m_corners.row(i).template segment<3>(3 * k) = vertices.row(m_face_vertices(i, k));
-      node.lo = m_corners.row(node.first).template head<3>().transpose();
-      node.hi = node.lo;
+    if (node.is_leaf()) {  // its faces' corners copied, and their box, in one pass
+      if (node.count <= 0) {
+        node.lo = node.hi = Vector3<Scalar>::Zero();
+        continue;
+      }
+      Vector3<Scalar> lo = vertices.row(m_face_vertices(node.first, 0)).transpose(), hi = lo;
       for (Index i = node.first; i < node.first + node.count; ++i)
         for (int k = 0; k < 3; ++k) {
-          node.lo = node.lo.cwiseMin(m_corners.row(i).template segment<3>(3 * k).transpose());
-          node.hi = node.hi.cwiseMax(m_corners.row(i).template segment<3>(3 * k).transpose());
+          const Vector3<Scalar> p = vertices.row(m_face_vertices(i, k)).transpose();
+          m_corners.row(i).template segment<3>(3 * k) = p.transpose();
+          lo = lo.cwiseMin(p);
+          hi = hi.cwiseMax(p);
         }
+      node.lo = lo;
+      node.hi = hi;
     } else {
       const Node& l = m_nodes[size_t(node.left)];
       const Node& r = m_nodes[size_t(node.right)];
