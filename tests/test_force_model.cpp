@@ -87,10 +87,10 @@ TEST(ForceModel, GravityAndExternalForcesAreAdded) {
   EXPECT_TRUE(near(forces.inverse_masses()[1], 500.0, 1e-14));
 }
 
-// The SIMD link kernel (Options::simd, where the CPU has one) gives the scalar loop's forces: on a
-// jittered lattice stretched and compressed past the bilinear switch, with random velocities, for
-// both damping models, linear and bilinear links, one and two threads, with fixed nodes (so the
-// loops see several link ranges) and a link of zero length.
+// The SIMD link kernels (Options::simd, where the CPU has them) give the scalar loops' forces and
+// energy: on a jittered lattice stretched and compressed past the bilinear switch, with random
+// velocities, for both damping models, linear and bilinear links, one and two threads, with fixed
+// nodes (so the loops see several link ranges) and a link of zero length.
 TEST(ForceModel, SimdLinkKernelMatchesTheScalarLoop) {
   // Without AVX2+FMA (or without xsimd at build time) Options::simd runs the scalar loops, so
   // there is nothing to compare; the scalar loops have their own tests.
@@ -126,6 +126,11 @@ TEST(ForceModel, SimdLinkKernelMatchesTheScalarLoop) {
         ASSERT_TRUE(b.allFinite());
         EXPECT_LE((a - b).cwiseAbs().maxCoeff(), 1e-14 * a.cwiseAbs().maxCoeff());
         EXPECT_GT(a.cwiseAbs().maxCoeff(), 0.0);
+        // The energy kernel (the energy check's links), past the switch too.
+        const double ea = scalar.elastic_energy(model, model.positions());
+        const double eb = simd.elastic_energy(model, model.positions());
+        EXPECT_GT(ea, 0.0);
+        EXPECT_LE(std::abs(ea - eb), 1e-13 * ea);
       }
 }
 

@@ -40,6 +40,14 @@ using LinkPrepareKernel = void (*)(const LinkArrays& links, const double* x4, co
 using LinkApplyKernel = void (*)(const std::int32_t* ij, const double* blocks, const double* p4,
                                  double* y, std::int32_t begin, std::int32_t end);
 
+/// The elastic energy (J) of links [begin, end), VoigtLink::energy summed; `x` holds 3 doubles
+/// per node (the model's positions).
+using LinkEnergyKernel = double (*)(const LinkArrays& links, const double* x, std::int32_t begin,
+                                    std::int32_t end);
+
+/// The energy kernel for this CPU, or nullptr.
+LinkEnergyKernel link_energy_kernel() noexcept;
+
 /// The prepare kernel for this CPU, or nullptr.
 LinkPrepareKernel link_prepare_kernel(bool bilinear, bool along_link) noexcept;
 

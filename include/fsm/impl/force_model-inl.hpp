@@ -657,6 +657,16 @@ template <typename Scalar>
 Scalar ForceModel<Scalar>::link_energy(const SphereModel<Scalar>& model,
                                        const Scalar* p) const noexcept {
   const detail::LinkData<Scalar> L(model);
+  if constexpr (std::is_same_v<Scalar, double>) {
+    if (m_options.simd)
+      if (const auto kernel = detail::simd::link_energy_kernel()) {
+        const detail::simd::LinkArrays links{L.ij, L.rest, L.ks, L.kd, L.kl, L.es};
+        Scalar sum(0);
+        for (const auto& [begin, end] : m_force_ranges)  // (every link in them carries force)
+          sum += kernel(links, p, std::int32_t(begin), std::int32_t(end));
+        return sum;
+      }
+  }
   Scalar sum(0);
   for (const auto& [begin, end] : m_force_ranges)
     for (Index l = begin; l < end; ++l) {

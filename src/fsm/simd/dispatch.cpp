@@ -10,6 +10,7 @@ namespace fsm::detail::simd {
 LinkForceKernel avx2_link_force_kernel(bool bilinear, bool along_link) noexcept;
 LinkPrepareKernel avx2_link_prepare_kernel(bool bilinear, bool along_link) noexcept;
 LinkApplyKernel avx2_link_apply_kernel() noexcept;
+LinkEnergyKernel avx2_link_energy_kernel() noexcept;
 TetForceKernel avx2_tet_force_kernel() noexcept;
 TetEnergyKernel avx2_tet_energy_kernel() noexcept;
 TetSpreadKernel avx2_tet_spread_kernel() noexcept;
@@ -32,6 +33,10 @@ LinkPrepareKernel link_prepare_kernel(bool bilinear, bool along_link) noexcept {
 
 LinkApplyKernel link_apply_kernel() noexcept {
   return has_avx2_fma() ? avx2_link_apply_kernel() : nullptr;
+}
+
+LinkEnergyKernel link_energy_kernel() noexcept {
+  return has_avx2_fma() ? avx2_link_energy_kernel() : nullptr;
 }
 
 TetForceKernel tet_force_kernel() noexcept {
@@ -61,6 +66,9 @@ LinkPrepareKernel link_prepare_kernel(bool, bool) noexcept {
   return nullptr;
 }
 LinkApplyKernel link_apply_kernel() noexcept {
+  return nullptr;
+}
+LinkEnergyKernel link_energy_kernel() noexcept {
   return nullptr;
 }
 TetForceKernel tet_force_kernel() noexcept {

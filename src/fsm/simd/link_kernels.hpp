@@ -315,4 +315,50 @@ void link_apply(const std::int32_t* ij, const double* blocks, const double* p4, 
   scatter.flush();
 }
 
+// The energy kernel (see simd_links.hpp): VoigtLink::energy of each link, four per batch, the
+// positions read from the 3-per-node array (four scalar loads a coordinate: the square root is
+// what the batch saves). The bilinear form covers the linear links too (their switch strain is
+// never reached).
+template <class Arch>
+inline double link_energy_one(const LinkArrays& L, const double* x, std::int32_t l) noexcept {
+  const double* xi = x + 3 * std::int64_t(L.ij[2 * l]);
+  const double* xj = x + 3 * std::int64_t(L.ij[2 * l + 1]);
+  const double dx = xj[0] - xi[0], dy = xj[1] - xi[1], dz = xj[2] - xi[2];
+  const double a = __builtin_fabs(__builtin_sqrt(dx * dx + dy * dy + dz * dz) - L.rest[l]);
+  const double es = L.es[l] * L.rest[l];
+  if (a <= es) return 0.5 * L.ks[l] * a * a;
+  const double b = a - es;
+  return 0.5 * L.ks[l] * es * es + L.ks[l] * es * b + 0.5 * L.kl[l] * b * b;
+}
+
+template <class Arch>
+double link_energy(const LinkArrays& L, const double* x, std::int32_t begin,
+                   std::int32_t end) noexcept {
+  using B = xsimd::batch<double, Arch>;
+  static_assert(B::size == 4, "four links per batch");
+  B sum(0.0);
+  std::int32_t l = begin;
+  for (; l + 4 <= end; l += 4) {
+    const std::int32_t* P = L.ij + 2 * std::int64_t(l);
+    const double *i0 = x + 3 * std::int64_t(P[0]), *i1 = x + 3 * std::int64_t(P[2]),
+                 *i2 = x + 3 * std::int64_t(P[4]), *i3 = x + 3 * std::int64_t(P[6]);
+    const double *j0 = x + 3 * std::int64_t(P[1]), *j1 = x + 3 * std::int64_t(P[3]),
+                 *j2 = x + 3 * std::int64_t(P[5]), *j3 = x + 3 * std::int64_t(P[7]);
+    const B dx = B{j0[0], j1[0], j2[0], j3[0]} - B{i0[0], i1[0], i2[0], i3[0]};
+    const B dy = B{j0[1], j1[1], j2[1], j3[1]} - B{i0[1], i1[1], i2[1], i3[1]};
+    const B dz = B{j0[2], j1[2], j2[2], j3[2]} - B{i0[2], i1[2], i2[2], i3[2]};
+    const B rest = B::load_unaligned(L.rest + l);
+    const B ks = B::load_unaligned(L.ks + l);
+    const B a = xsimd::abs(xsimd::sqrt(dx * dx + dy * dy + dz * dz) - rest);
+    const B es = B::load_unaligned(L.es + l) * rest;
+    const B b = a - es;
+    const B large =
+        B(0.5) * ks * es * es + ks * es * b + B(0.5) * B::load_unaligned(L.kl + l) * b * b;
+    sum += xsimd::select(a <= es, B(0.5) * ks * a * a, large);
+  }
+  double e = xsimd::hadd(sum);
+  for (; l < end; ++l) e += link_energy_one<Arch>(L, x, l);
+  return e;
+}
+
 }  // namespace fsm::detail::simd

@@ -22,4 +22,8 @@ LinkApplyKernel avx2_link_apply_kernel() noexcept {
   return &link_apply<Avx2>;
 }
 
+LinkEnergyKernel avx2_link_energy_kernel() noexcept {
+  return &link_energy<Avx2>;
+}
+
 }  // namespace fsm::detail::simd
