@@ -476,6 +476,14 @@ TEST(Continuum, LightNodeOnASliverStaysStable) {
     Simulation<double> sim(m, o);
     int diverged = 0;
     for (int k = 0; k < 300; ++k) diverged += !sim.step(1e-3).advanced();
+    {  // The energy check's kept forces change nothing here either (flutter, rejected steps).
+      o.forces.reuse_end_forces = false;
+      Simulation<double> plain(m, o);
+      for (int k = 0; k < 300; ++k) (void)plain.step(1e-3);
+      EXPECT_EQ((plain.model().positions() - sim.model().positions()).cwiseAbs().maxCoeff(), 0.0);
+      EXPECT_EQ(plain.forces().continuum_fluttered_elements(),
+                sim.forces().continuum_fluttered_elements());
+    }
     const double lift = sim.model().positions()(d, 2) - sim.model().positions()(a, 2);
     std::printf(
         "quality %.1f, flutter guard %d: %d of 300 steps diverged, lift %.3g mm, %d "
@@ -552,6 +560,23 @@ TEST(Continuum, EndOfStepForcesAreReusedExactly) {
     }
     ASSERT_EQ((xa[k] - xb[k]).cwiseAbs().maxCoeff(), 0.0) << "step " << k;
   }
+  // A direct solver evaluates its own forces: nothing is kept for it, and nothing changes.
+  std::vector<Positions<double>> direct;
+  for (const bool reuse : {true, false}) {
+    SphereModel<double> m = continuum_block({2, 2, 2}, 0.003);
+    for (Index i = 0; i < m.num_nodes(); ++i)
+      if (std::abs(m.rest_positions()(i, 2)) < 1e-9) m.set_fixed(i);
+    Simulation<double>::Options o;
+    o.forces.reuse_end_forces = reuse;
+    Simulation<double> sim(m, o);
+    ImplicitEulerIntegrator<double>::Options io;
+    io.solver = ImplicitEulerIntegrator<double>::Solver::eigen_ldlt;
+    sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
+    for (int k = 0; k < 10; ++k) ASSERT_TRUE(sim.step(1e-3).advanced());
+    EXPECT_EQ(sim.forces().kept_forces_reused(), 0u);
+    direct.push_back(sim.model().positions());
+  }
+  EXPECT_EQ((direct[0] - direct[1]).cwiseAbs().maxCoeff(), 0.0);
 }
 
 // An element strained past element_tangent_strain (0.5) gets the element tangent for the step, and
@@ -608,6 +633,29 @@ TEST(Continuum, FlutteringElementsGetTheElementTangent) {
   EXPECT_EQ(run({1.0, 1.01, 1.0, 1.01, 1.0}, false), std::pair(Index(0), Index(0)));
   // Marked elements keep the element tangent when the swing stops.
   EXPECT_EQ(run({1.0, 1.01, 1.0, 1.01, 1.01, 1.01}, true), std::pair(all, all));
+  // The energy check's kept forces (elastic_energy_keeping_forces) watch their state only if it
+  // starts a step: kept and used, each state counts once; kept at a state that is then dropped
+  // (a rejected step, an edit), it leaves no trace.
+  auto kept = [&](const std::vector<double>& js, bool use) {
+    SphereModel<double> m = rest;
+    ForceModel<double>::Options o;
+    o.gravity.setZero();
+    ForceModel<double> f(m, o);
+    std::vector<double> blocks(std::size_t(ForceModel<double>::implicit_block_size) *
+                               std::size_t(m.num_links()));
+    Positions<double> rhs(m.num_nodes(), 3), diag(m.num_nodes(), 3);
+    for (const double j : js) {
+      m.positions() = affine(m, M3(std::cbrt(j) * M3::Identity()));
+      (void)f.elastic_energy_keeping_forces(m);
+      f.reuse_kept_forces(use);
+      if (!use) m.positions() = rest.positions();  // rolled back to J = 1
+      f.prepare_implicit(m, 1e-3, JacobianForm::definite, blocks.data(), rhs, diag);
+    }
+    return std::pair{f.continuum_fluttered_elements(), f.kept_forces_reused()};
+  };
+  EXPECT_EQ(kept({1.0, 1.01, 1.0, 1.01}, true), std::pair(all, std::uint64_t(4)));
+  EXPECT_EQ(kept({1.01, 1.01, 1.01, 1.01, 1.01}, false), std::pair(Index(0), std::uint64_t(0)))
+      << "the rejected states were watched";
 }
 
 // --- Smoothed strains (StrainSmoothing, docs/physics.md section 11) ---

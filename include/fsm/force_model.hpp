@@ -294,8 +294,10 @@ class ForceModel {
   /// called at; they are used only if nothing has evaluated or changed the elements since); false
   /// drops them.
   void reuse_kept_forces(bool same_state) noexcept {
-    m_kept_armed = same_state && m_kept;
-    if (!same_state) m_kept = false;
+    if (same_state)
+      m_kept_armed = m_kept;
+    else
+      drop_kept_forces();
   }
   /// @brief The continuum elements with \f$J \le 0\f$ at the state of the forces
   /// elastic_energy_keeping_forces() kept (as inverted_elements() counts them), or -1 if none are
@@ -404,6 +406,12 @@ class ForceModel {
   void pad_states(const Scalar* x, const Scalar* v, Index n) noexcept;
 
   void update_mobility(const SphereModel<Scalar>& model) noexcept;
+  // Forgets the kept forces; their evaluation's flutter watch is undone (a state that started no
+  // step must not count as one).
+  void drop_kept_forces() noexcept {
+    if (m_kept && m_kept_watched) m_continuum.restore_watch();
+    m_kept = m_kept_armed = m_kept_watched = false;
+  }
   // The force links' energy at positions p (3 |V|).
   [[nodiscard]] Scalar link_energy(const SphereModel<Scalar>& model,
                                    const Scalar* p) const noexcept;
@@ -441,7 +449,7 @@ class ForceModel {
   // elastic_energy_keeping_forces(): the elements' forces in m_element_force and their per-step
   // state are at a step's end state (m_kept, as of the continuum's generation), and the next
   // prepare_implicit() may use them (m_kept_armed).
-  bool m_kept{false}, m_kept_armed{false};
+  bool m_kept{false}, m_kept_armed{false}, m_kept_watched{false};
   std::uint64_t m_kept_generation{0}, m_kept_reused{0};
   Scalar m_base_h{-1};
 };

@@ -74,6 +74,11 @@ class ImplicitEulerIntegrator final : public Integrator<Scalar> {
   }
   [[nodiscard]] int order() const noexcept override { return 1; }
   [[nodiscard]] bool implicit() const noexcept override { return true; }
+  /// The matrix-free solve (conjugate_gradient) starts with prepare_implicit(); the direct
+  /// solvers evaluate the forces themselves.
+  [[nodiscard]] bool prepares_implicit() const noexcept override {
+    return m_options.solver == Solver::conjugate_gradient;
+  }
   [[nodiscard]] const Options& options() const noexcept { return m_options; }
   void set_options(const Options& options) { m_options = options; }
 

@@ -37,6 +37,9 @@ class Integrator {
   [[nodiscard]] virtual int order() const noexcept = 0;
   /// @brief True when the step solves for the end-of-step forces (stiff contacts need no cap).
   [[nodiscard]] virtual bool implicit() const noexcept { return false; }
+  /// @brief True when the step's first force evaluation is ForceModel::prepare_implicit() at the
+  /// step's start state (so forces kept by ForceModel::elastic_energy_keeping_forces() serve it).
+  [[nodiscard]] virtual bool prepares_implicit() const noexcept { return false; }
   /// @brief Sizes the workspace for `model`. Call again when the model's size changes.
   virtual void prepare(const SphereModel<Scalar>& model) = 0;
   /// @brief Advances by dt (s). Requires prepare() for this model's size; returns ok = false

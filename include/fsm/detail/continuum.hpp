@@ -295,6 +295,26 @@ class ContinuumTerm {
   /// Makes the next add_forces() watch each element's J for flutter (flutter_change): the
   /// implicit step calls it once per step, before its first force evaluation. No allocation.
   void watch_next_forces() noexcept { m_watch = m_flutter_guard; }
+  /// Saves the flutter watch's state (each element's last watched J, its change, the reversals in
+  /// a row and the flags) for restore_watch(): a watched force evaluation at a state that may not
+  /// start a step (ForceModel::elastic_energy_keeping_forces) must leave no trace if it does not.
+  /// No allocation.
+  void save_watch() noexcept {
+    m_saved_step_j = m_step_j;  // the same sizes: no allocation
+    m_saved_step_dj = m_step_dj;
+    m_saved_reversals = m_reversals;
+    m_saved_fluttered = m_fluttered;
+    m_saved_num_fluttered = m_num_fluttered;
+  }
+  /// Puts back what save_watch() saved (the next add_forces() sees the flags as they were).
+  void restore_watch() noexcept {
+    ++m_generation;
+    m_step_j = m_saved_step_j;
+    m_step_dj = m_saved_step_dj;
+    m_reversals = m_saved_reversals;
+    m_fluttered = m_saved_fluttered;
+    m_num_fluttered = m_saved_num_fluttered;
+  }
   /// Whether watch_next_forces() watches (default true). Off also forgets the elements found
   /// fluttering. No allocation.
   void set_flutter_guard(bool on) noexcept {
@@ -411,6 +431,7 @@ class ContinuumTerm {
     m_reversals.assign(nt, 0);
     m_fluttered.assign(nt, 0);
     m_num_fluttered = 0;
+    save_watch();  // sizes the saved copy
     m_watch = false;
     set_element_tangent_quality(m_element_tangent_quality);
     m_edge_block.assign(std::size_t(edge_block_size) * num_edges(), Scalar(0));
@@ -673,12 +694,12 @@ class ContinuumTerm {
         continue;
       }
       const Vector3<Scalar> n = d / l;
-      const Scalar rate = n.dot(row(v, j) - row(v, i));
+      const Scalar extension_rate = n.dot(row(v, j) - row(v, i));
       B[0] = n[0];
       B[1] = n[1];
       B[2] = n[2];
-      m_edge_rate[e] = rate;
-      const Vector3<Scalar> F = m_edge_tau[e] * m_edge_k[e] * rate * n;
+      m_edge_rate[e] = extension_rate;
+      const Vector3<Scalar> F = m_edge_tau[e] * m_edge_k[e] * extension_rate * n;
       add(f, i, F);
       add(f, j, -F);
     }
@@ -752,7 +773,8 @@ class ContinuumTerm {
       if (m_removed[t]) continue;
       Matrix3<Scalar> Ds;
       load_edges(x, &m_tets[4 * t], Ds);
-      if (!(Ds.determinant() > Scalar(0))) ++count;
+      // (The triple product, as add_forces() computes the volume: the same sign.)
+      if (!(Ds.col(0).dot(Ds.col(1).cross(Ds.col(2))) > Scalar(0))) ++count;
     }
     return count;
   }
@@ -1591,6 +1613,10 @@ class ContinuumTerm {
   std::vector<std::uint8_t> m_reversals, m_fluttered;
   std::size_t m_num_fluttered{0};
   bool m_watch{false}, m_flutter_guard{true};
+  // save_watch()'s copy.
+  std::vector<Scalar> m_saved_step_j, m_saved_step_dj;
+  std::vector<std::uint8_t> m_saved_reversals, m_saved_fluttered;
+  std::size_t m_saved_num_fluttered{0};
   // add_forces()'s by-products and the term's generation (generation()).
   Scalar m_forces_energy{0};
   Index m_forces_inverted{0};

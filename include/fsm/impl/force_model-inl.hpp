@@ -689,7 +689,7 @@ Scalar ForceModel<Scalar>::elastic_energy(const SphereModel<Scalar>& model,
 template <typename Scalar>
 Scalar ForceModel<Scalar>::elastic_energy_keeping_forces(
     const SphereModel<Scalar>& model) noexcept {
-  m_kept = m_kept_armed = false;
+  drop_kept_forces();
   const Scalar* x = model.positions().data();
   if (m_continuum.empty() || !m_options.reuse_end_forces ||
       m_options.strain_smoothing != StrainSmoothing::element ||
@@ -704,8 +704,11 @@ Scalar ForceModel<Scalar>::elastic_energy_keeping_forces(
       v4 = m_v4.data();
     }
   }
-  // As prepare_implicit()'s first pass of a step evaluates them.
+  // As prepare_implicit()'s first pass of a step evaluates them, its flutter watch included:
+  // saved first, and undone if the state does not start a step (drop_kept_forces()).
   std::fill(m_element_force.begin(), m_element_force.end(), Scalar(0));
+  m_kept_watched = m_options.flutter_guard;
+  if (m_kept_watched) m_continuum.save_watch();
   m_continuum.watch_next_forces();
   m_continuum.add_forces(x, v, m_element_force.data(), true, x4, v4);
   m_kept = true;
@@ -860,13 +863,16 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
       // nothing has evaluated or changed the elements since (elastic_energy_keeping_forces()).
       const bool kept = m_kept_armed && m_kept && !keep_contact_set &&
                         m_kept_generation == m_continuum.generation();
+      if (!kept && !keep_contact_set) drop_kept_forces();  // their watch undone: this one counts
       if (!kept) {
         std::fill(m_element_force.begin(), m_element_force.end(), Scalar(0));
         if (!keep_contact_set) m_continuum.watch_next_forces();  // once per step: its first pass
         m_continuum.add_forces(x, v, m_element_force.data(), true, x4, v4);
       }
       m_kept_reused += kept ? 1 : 0;
-      m_kept = m_kept_armed = false;  // prepare_implicit() below turns the kept state into its own
+      // prepare_implicit() below turns the kept state into its own (their watch stands: this
+      // state starts a step).
+      m_kept = m_kept_armed = m_kept_watched = false;
       Scalar* r = rhs.data();
       for (std::size_t k = 0; k < m_element_force.size(); ++k) r[k] += h * m_element_force[k];
       m_continuum.prepare_implicit(x, v, h, r, diagonal.data(), v4);

@@ -361,7 +361,7 @@ StepReport<Scalar> Simulation<Scalar>::step(Scalar dt) noexcept {
   // The elements' forces kept by the last step's energy check are at this very state unless it
   // was edited (save_state() above) or changed since (ForceModel checks its own side).
   m_forces.reuse_kept_forces(m_forces_kept);
-  const bool keep_forces = m_integrator->implicit();
+  const bool keep_forces = m_integrator->prepares_implicit();
   if (!m_integrator->implicit())
     report.softened_contacts = m_forces.limit_contact_stiffness(m_model, dt);
   const Scalar contact_time = m_forces.contact_time();
@@ -429,7 +429,8 @@ StepReport<Scalar> Simulation<Scalar>::step(Scalar dt) noexcept {
       return report;
     }
     restore_state();
-    m_integrator->reset();  // its warm start came from the rejected state
+    m_integrator->reset();              // its warm start came from the rejected state
+    m_forces.reuse_kept_forces(false);  // kept at the rejected state: never a step's start
   }
   m_forces.set_contact_time(contact_time);
   report.status = StepStatus::diverged;
