@@ -506,14 +506,17 @@ TEST(Continuum, LightNodeOnASliverStaysStable) {
 // bit as evaluating both, through what invalidates the kept forces (an edit of the state between
 // steps, a region falling asleep and waking, a cut), and the reuse does happen.
 TEST(Continuum, EndOfStepForcesAreReusedExactly) {
-  auto run = [](bool reuse, std::vector<StepReport<double>>& reports,
-                std::vector<Positions<double>>& states) {
-    SphereModel<double> m = continuum_block({4, 3, 3}, 0.003);
-    for (Index i = 0; i < m.num_nodes(); ++i)
-      if (std::abs(m.rest_positions()(i, 2)) < 1e-9) m.set_fixed(i);
+  // A block fixed at its base, with the reuse on or off.
+  auto simulation = [](Eigen::Vector3i cells, bool reuse) {
+    SphereModel<double> m = continuum_block(cells, 0.003);
+    fix_below(m, 2);
     Simulation<double>::Options o;
     o.forces.reuse_end_forces = reuse;
-    Simulation<double> sim(m, o);
+    return Simulation<double>(m, o);
+  };
+  auto run = [&](bool reuse, std::vector<StepReport<double>>& reports,
+                 std::vector<Positions<double>>& states) {
+    Simulation<double> sim = simulation({4, 3, 3}, reuse);
     const Index top = sim.model().num_nodes() - 1;
     bool slept = false;
     for (int k = 0; k < 240; ++k) {
@@ -539,6 +542,8 @@ TEST(Continuum, EndOfStepForcesAreReusedExactly) {
       slept = slept || sim.asleep(0);
     }
     EXPECT_TRUE(slept) << "the block never fell asleep: the test misses that case";
+    // The last step's check kept its forces (with the reuse on).
+    EXPECT_EQ(sim.forces().kept_inverted_elements() >= 0, reuse);
     return sim.forces().kept_forces_reused();
   };
   std::vector<StepReport<double>> ra, rb;
@@ -563,17 +568,13 @@ TEST(Continuum, EndOfStepForcesAreReusedExactly) {
   // A direct solver evaluates its own forces: nothing is kept for it, and nothing changes.
   std::vector<Positions<double>> direct;
   for (const bool reuse : {true, false}) {
-    SphereModel<double> m = continuum_block({2, 2, 2}, 0.003);
-    for (Index i = 0; i < m.num_nodes(); ++i)
-      if (std::abs(m.rest_positions()(i, 2)) < 1e-9) m.set_fixed(i);
-    Simulation<double>::Options o;
-    o.forces.reuse_end_forces = reuse;
-    Simulation<double> sim(m, o);
+    Simulation<double> sim = simulation({2, 2, 2}, reuse);
     ImplicitEulerIntegrator<double>::Options io;
     io.solver = ImplicitEulerIntegrator<double>::Solver::eigen_ldlt;
     sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
     for (int k = 0; k < 10; ++k) ASSERT_TRUE(sim.step(1e-3).advanced());
     EXPECT_EQ(sim.forces().kept_forces_reused(), 0u);
+    EXPECT_EQ(sim.forces().kept_inverted_elements(), -1) << "a check kept forces no step uses";
     direct.push_back(sim.model().positions());
   }
   EXPECT_EQ((direct[0] - direct[1]).cwiseAbs().maxCoeff(), 0.0);

@@ -662,15 +662,14 @@ Scalar ForceModel<Scalar>::link_energy(const SphereModel<Scalar>& model,
       if (const auto kernel = detail::simd::link_energy_kernel()) {
         const detail::simd::LinkArrays links{L.ij, L.rest, L.ks, L.kd, L.kl, L.es};
         Scalar sum(0);
-        for (const auto& [begin, end] : m_force_ranges)  // (every link in them carries force)
+        for (const auto& [begin, end] : m_force_ranges)
           sum += kernel(links, p, std::int32_t(begin), std::int32_t(end));
         return sum;
       }
   }
   Scalar sum(0);
-  for (const auto& [begin, end] : m_force_ranges)
+  for (const auto& [begin, end] : m_force_ranges)  // (every link in them carries force)
     for (Index l = begin; l < end; ++l) {
-      if (!m_force_link[std::size_t(l)]) continue;
       const std::ptrdiff_t i = 3 * std::ptrdiff_t(L.ij[2 * l]);
       const std::ptrdiff_t j = 3 * std::ptrdiff_t(L.ij[2 * l + 1]);
       const Scalar dx = p[j] - p[i], dy = p[j + 1] - p[i + 1], dz = p[j + 2] - p[i + 2];
