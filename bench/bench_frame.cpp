@@ -67,6 +67,7 @@ void BM_WholeFrame(benchmark::State& state) {
   };
   for (int f = 0; f < 60; ++f) frame();  // 1 s of settling
   iterations = probe_contacts = 0;
+  const Index rebuilds_before = contacts.pair_list_rebuilds();
   long frames = 0;
   for (auto _ : state) {
     frame();
@@ -77,6 +78,9 @@ void BM_WholeFrame(benchmark::State& state) {
   state.counters["CG_per_step"] = double(iterations) / double(17 * frames);
   state.counters["surface_vertices"] = double(model.skin.num_vertices());
   state.counters["probe_contacts"] = double(probe_contacts) / double(17 * std::max(frames, 1L));
+  // How often the part-contact pair list was rebuilt (its Verlet skin crossed), per step.
+  state.counters["pair_rebuilds"] =
+      double(contacts.pair_list_rebuilds() - rebuilds_before) / double(17 * std::max(frames, 1L));
   if (probe_contacts == 0) state.SkipWithError("the probe never touched the body");
 }
 BENCHMARK(BM_WholeFrame)

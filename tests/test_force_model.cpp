@@ -480,7 +480,7 @@ TEST(ForceModel, DragDecaysRigidMotionExponentially) {
   EXPECT_THROW(ForceModel<double>(block<double>({1, 1, 1}, 0.005), bad), Error);
 }
 
-TEST(ForceModel, TwoThreadsGiveTheSameForcesAsOne) {
+TEST(ForceModel, TwoThreadsGiveTheSameForcesAndEnergyAsOne) {
   if (detail::max_threads() < 2) GTEST_SKIP() << "a machine with one hardware thread";
   std::mt19937 rng(17);
   SphereModel<double> model = random_model<double>(rng, {6, 5, 7}, 0.3, true);
@@ -490,6 +490,10 @@ TEST(ForceModel, TwoThreadsGiveTheSameForcesAsOne) {
   one.evaluate(model, model.positions(), model.velocities(), f1);
   two.evaluate(model, model.positions(), model.velocities(), f2);
   EXPECT_TRUE(matrices_near(f1, f2, 1e-13));
+  // The energy too: each thread sums its share of the links (a bilinear law).
+  const double e1 = one.elastic_energy(model, model.positions());
+  EXPECT_GT(e1, 0.0);
+  EXPECT_NEAR(two.elastic_energy(model, model.positions()), e1, 1e-12 * e1);
 }
 
 TEST(ForceModel, EnergiesAreZeroAtRestAndPositiveWhenStrained) {

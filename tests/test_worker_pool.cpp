@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <future>
+#include <random>
 #include <thread>
 #include <vector>
 
@@ -79,6 +80,46 @@ TEST(WorkerPool, HandleCopiesMakeTheirOwnPool) {
   detail::PoolHandle c;
   EXPECT_EQ(c.threads(), 1);
   EXPECT_EQ(c.get(), nullptr);
+}
+
+// The implicit step's system on two threads: the right-hand side, diag(A) and the per-node 3 x 3
+// blocks of the block-Jacobi preconditioner (each thread sums its links' blocks, then its share of
+// the nodes) are one thread's, to rounding. Drag, random velocities, jittered links, some nodes
+// fixed (their links are out of the force ranges).
+TEST(WorkerPool, TwoThreadsPrepareTheImplicitSystemOfOne) {
+  if (detail::max_threads() < 2) GTEST_SKIP() << "a machine with one hardware thread";
+  std::mt19937 rng(11);
+  SphereModel<double> model = random_model<double>(rng, {6, 5, 4}, 0.3, true);
+  fix_below(model, 1);
+  const Index n = model.num_nodes();
+  struct System {
+    Positions<double> rhs, diagonal;
+    std::vector<double> blocks;
+  };
+  auto prepare = [&](int threads) {
+    ForceModel<double>::Options o;
+    o.threads = threads;
+    o.drag = 5;
+    ForceModel<double> forces(model, o);
+    std::vector<double> link_blocks(
+        std::size_t(ForceModel<double>::implicit_block_size * model.num_links()));
+    System s{Positions<double>(n, 3), Positions<double>(n, 3),
+             std::vector<double>(6 * std::size_t(n))};
+    forces.prepare_implicit(model, 1e-3, JacobianForm::definite, link_blocks.data(), s.rhs,
+                            s.diagonal);
+    forces.implicit_diagonal_blocks(model, link_blocks.data(), s.blocks.data());
+    return s;
+  };
+  const System one = prepare(1), two = prepare(2);
+  EXPECT_GT(one.rhs.norm(), 0.0);
+  EXPECT_TRUE(matrices_near(one.rhs, two.rhs, 1e-13));
+  EXPECT_TRUE(matrices_near(one.diagonal, two.diagonal, 1e-13));
+  const Eigen::Map<const Eigen::ArrayXd> b1(one.blocks.data(), Index(one.blocks.size()));
+  const Eigen::Map<const Eigen::ArrayXd> b2(two.blocks.data(), Index(two.blocks.size()));
+  EXPECT_GT(b1.abs().maxCoeff(), 0.0);
+  EXPECT_LE((b1 - b2).abs().maxCoeff(), 1e-13 * b1.abs().maxCoeff());
+  // Off-diagonal entries are there: the links' n n^T, not only the mass.
+  EXPECT_GT(b1.reshaped(6, n).bottomRows(3).abs().maxCoeff(), 0.0);
 }
 
 // Twenty implicit steps of `m` on `threads` threads (CG far below the comparisons' tolerance:

@@ -61,7 +61,8 @@ struct PenaltyContact {
   /// Force on `node` (N) at the end of the last accepted step (ForceModel::finish_contacts), or
   /// at detection.
   Vector3<Scalar> force{Vector3<Scalar>::Zero()};
-  /// Force on `node` (N) at the start of the step (ForceModel::start_contacts).
+  /// Force on `node` (N) at the start of the step (ForceModel::start_contacts; zero when the
+  /// step is implicit, which does not use it).
   Vector3<Scalar> start_force{Vector3<Scalar>::Zero()};
   /// Whether the last implicit step took this contact into its solve (it penetrated at the start).
   bool in_solve{false};
@@ -107,7 +108,9 @@ struct HeldNode {
 /// links carry no force. Holds what the force evaluation needs
 /// besides the model: options, the external forces, inverse masses (0 for fixed nodes) and
 /// per-thread buffers. Everything is sized by refresh(); evaluate() and the other per-step
-/// functions allocate nothing and never throw.
+/// functions allocate nothing and never throw. With Options::threads above 1 they share one
+/// worker pool and its buffers, const ones included (evaluate(), elastic_energy()): one caller at
+/// a time.
 template <typename Scalar>
 class ForceModel {
  public:
@@ -120,8 +123,9 @@ class ForceModel {
     Vector3<Scalar> gravity{Scalar(0), Scalar(0), Scalar(-9.81)};
     /// How the dashpots see relative velocity (VoigtLink).
     DampingModel damping{DampingModel::along_link};
-    /// Threads for the link loops and the continuum law's implicit products (at most the
-    /// machine's hardware threads; the element forces and energy stay serial): more than 1 starts a
+    /// Threads for the link loops (forces, energy, the implicit step's blocks and products) and
+    /// the continuum law's implicit products (at most the machine's hardware threads; the element
+    /// forces and energy stay serial): more than 1 starts a
     /// persistent pool of threads - 1 helpers when the options are set (never inside a step); a
     /// helper spins for 2 ms after each loop, so at 1 kHz it keeps a second core busy while the
     /// simulation runs, and sleeps when it stops.
@@ -219,8 +223,9 @@ class ForceModel {
   void set_contact_time(Scalar t) noexcept { m_contact_time = t; }
   [[nodiscard]] Scalar contact_time() const noexcept { return m_contact_time; }
   /// @brief The contacts' forces at the model's state and the contact time (the step's start),
-  /// into each contact's `start_force`; clears `in_solve`. Simulation::step calls it.
-  void start_contacts(const SphereModel<Scalar>& model) noexcept;
+  /// into each contact's `start_force` (zero with `start_forces` false: an implicit step, whose
+  /// contact_work() does not use them); clears `in_solve`. Simulation::step calls it.
+  void start_contacts(const SphereModel<Scalar>& model, bool start_forces = true) noexcept;
   /// @brief The contacts' forces at the model's state and the contact time, into each contact's
   /// `force`.
   void finish_contacts(const SphereModel<Scalar>& model) noexcept;
@@ -415,8 +420,14 @@ class ForceModel {
   // The force links' energy at positions p (3 |V|).
   [[nodiscard]] Scalar link_energy(const SphereModel<Scalar>& model,
                                    const Scalar* p) const noexcept;
-  // The mass (with drag) and the force links' blocks summed into m_link_node_blocks.
-  void link_node_blocks(const SphereModel<Scalar>& model, const Scalar* blocks, Scalar h) noexcept;
+  // The force links' blocks in [begin, end) added to per-node blocks `out` (6 |V|: xx yy zz xy
+  // xz yz).
+  void add_link_node_blocks(const SphereModel<Scalar>& model, const Scalar* blocks, Index begin,
+                            Index end, Scalar* out) const noexcept;
+  // m_link_node_blocks for nodes [begin, end): M (1 + h gamma) on the diagonal plus the first `T`
+  // buffers of m_block_scratch (T = 0: the mass alone).
+  void init_link_node_blocks(const SphereModel<Scalar>& model, Scalar h, Index begin, Index end,
+                             int T) noexcept;
   void update_ranges(const SphereModel<Scalar>& model) noexcept;
 
   Options m_options;
@@ -427,8 +438,9 @@ class ForceModel {
   std::vector<Scalar> m_external;
   std::vector<double> m_x4, m_v4;  // positions and velocities, 4 per node, for the SIMD kernel
   ScalarArray<Scalar> m_inverse_mass;
-  std::vector<std::vector<Scalar>> m_scratch;       // one buffer of 3 |V| per pool thread
-  std::vector<std::vector<Scalar>> m_node_scratch;  // one buffer of |V| per pool thread
+  std::vector<std::vector<Scalar>> m_scratch;        // one buffer of 3 |V| per pool thread
+  std::vector<std::vector<Scalar>> m_node_scratch;   // one buffer of |V| per pool thread
+  std::vector<std::vector<Scalar>> m_block_scratch;  // one buffer of 6 |V| per pool thread
   detail::PoolHandle m_pool;
   std::vector<PenaltyContact<Scalar>> m_contacts;
   Index m_num_contacts{0};

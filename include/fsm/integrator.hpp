@@ -35,7 +35,9 @@ class Integrator {
   [[nodiscard]] virtual std::string_view name() const noexcept = 0;
   /// @brief Global order of accuracy.
   [[nodiscard]] virtual int order() const noexcept = 0;
-  /// @brief True when the step solves for the end-of-step forces (stiff contacts need no cap).
+  /// @brief True when the step solves for the end-of-step forces (stiff contacts need no cap)
+  /// and takes the contacts' linear laws into it (ForceModel::prepare_implicit() or
+  /// add_contact_linearisation()), so it needs no start-of-step contact forces.
   [[nodiscard]] virtual bool implicit() const noexcept { return false; }
   /// @brief True when the step's first force evaluation is ForceModel::prepare_implicit() at the
   /// step's start state (so forces kept by ForceModel::elastic_energy_keeping_forces() serve it).

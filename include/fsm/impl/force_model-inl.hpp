@@ -247,7 +247,8 @@ bool ForceModel<Scalar>::add_held(const HeldNode<Scalar>& held) noexcept {
 }
 
 template <typename Scalar>
-void ForceModel<Scalar>::start_contacts(const SphereModel<Scalar>& model) noexcept {
+void ForceModel<Scalar>::start_contacts(const SphereModel<Scalar>& model,
+                                        bool start_forces) noexcept {
   const Scalar* x = model.positions().data();
   const Scalar* v = model.velocities().data();
   m_contacts_linearised = false;
@@ -257,7 +258,9 @@ void ForceModel<Scalar>::start_contacts(const SphereModel<Scalar>& model) noexce
     Scalar fn;
     Vector3<Scalar> slip;
     c.start_force =
-        detail::contact_force(c, x, v, detail::surface_advance(c, m_contact_time), fn, slip);
+        start_forces
+            ? detail::contact_force(c, x, v, detail::surface_advance(c, m_contact_time), fn, slip)
+            : Vector3<Scalar>::Zero();
     c.in_solve = false;
   }
 }
@@ -564,6 +567,8 @@ void ForceModel<Scalar>::resize_scratch() {
   for (auto& s : m_scratch) s.assign(3 * std::size_t(m_num_nodes), Scalar(0));
   m_node_scratch.resize(m_scratch.size());
   for (auto& s : m_node_scratch) s.assign(std::size_t(m_num_nodes), Scalar(0));
+  m_block_scratch.resize(m_scratch.size());
+  for (auto& s : m_block_scratch) s.assign(6 * std::size_t(m_num_nodes), Scalar(0));
 }
 
 template <typename Scalar>
@@ -657,24 +662,43 @@ template <typename Scalar>
 Scalar ForceModel<Scalar>::link_energy(const SphereModel<Scalar>& model,
                                        const Scalar* p) const noexcept {
   const detail::LinkData<Scalar> L(model);
-  if constexpr (std::is_same_v<Scalar, double>) {
-    if (m_options.simd)
-      if (const auto kernel = detail::simd::link_energy_kernel()) {
-        const detail::simd::LinkArrays links{L.ij, L.rest, L.ks, L.kd, L.kl, L.es};
-        Scalar sum(0);
-        for (const auto& [begin, end] : m_force_ranges)
-          sum += kernel(links, p, std::int32_t(begin), std::int32_t(end));
-        return sum;
-      }
-  }
-  Scalar sum(0);
-  for (const auto& [begin, end] : m_force_ranges)  // (every link in them carries force)
-    for (Index l = begin; l < end; ++l) {
-      const std::ptrdiff_t i = 3 * std::ptrdiff_t(L.ij[2 * l]);
-      const std::ptrdiff_t j = 3 * std::ptrdiff_t(L.ij[2 * l + 1]);
-      const Scalar dx = p[j] - p[i], dy = p[j + 1] - p[i + 1], dz = p[j + 2] - p[i + 2];
-      sum += L.law(l).energy(std::sqrt(dx * dx + dy * dy + dz * dz) - L.rest[l]);
+  // The force links in [begin, end).
+  auto range_energy = [&](Index begin, Index end) {
+    Scalar sum(0);
+    if constexpr (std::is_same_v<Scalar, double>) {
+      if (m_options.simd)
+        if (const auto kernel = detail::simd::link_energy_kernel()) {
+          const detail::simd::LinkArrays links{L.ij, L.rest, L.ks, L.kd, L.kl, L.es};
+          for (const auto& [a, b] : m_force_ranges) {
+            const Index lo = std::max(a, begin), hi = std::min(b, end);
+            if (lo < hi) sum += kernel(links, p, std::int32_t(lo), std::int32_t(hi));
+          }
+          return sum;
+        }
     }
+    for (const auto& [a, b] : m_force_ranges)  // (every link in them carries force)
+      for (Index l = std::max(a, begin); l < std::min(b, end); ++l) {
+        const std::ptrdiff_t i = 3 * std::ptrdiff_t(L.ij[2 * l]);
+        const std::ptrdiff_t j = 3 * std::ptrdiff_t(L.ij[2 * l + 1]);
+        const Scalar dx = p[j] - p[i], dy = p[j + 1] - p[i + 1], dz = p[j + 2] - p[i + 2];
+        sum += L.law(l).energy(std::sqrt(dx * dx + dy * dy + dz * dz) - L.rest[l]);
+      }
+    return sum;
+  };
+  // On the pool: each thread its share of the links (at most kMaxShares partial sums).
+  constexpr int kMaxShares = 16;
+  detail::WorkerPool* pool = m_pool.get();
+  const int T = pool ? std::min(pool->size(), kMaxShares) : 1;
+  if (T < 2) return range_energy(0, model.num_links());
+  Scalar partial[kMaxShares] = {};
+  auto job = [&](int t, int) {
+    if (t >= T) return;
+    const auto [begin, end] = detail::share(model.num_links(), t, T);
+    partial[t] = range_energy(begin, end);
+  };
+  pool->run(job);
+  Scalar sum(0);
+  for (int t = 0; t < T; ++t) sum += partial[t];
   return sum;
 }
 
@@ -843,15 +867,44 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
         B[4] = h2 * beta + (along ? Scalar(0) : h * L.kd[l]);
       }
     };
-    detail::scatter_links(m_pool.get(), model.num_nodes(), model.num_links(), rhs.data(), m_scratch,
-                          init, kernel);
-    // The links' 3 x 3 diagonal blocks per node, with the mass (the drag's Jacobian -gamma m I
-    // joins it: M (1 + h gamma)), kept for implicit_diagonal_blocks(); diag(A) from them.
-    link_node_blocks(model, blocks, h);
-    {
+    // The links' 3 x 3 diagonal blocks per node with the mass (the drag's Jacobian -gamma m I
+    // joins it: M (1 + h gamma)), kept for implicit_diagonal_blocks(); diag(A) from them. On the
+    // pool each thread sums its links' blocks into its own buffer, then its share of the nodes.
+    detail::WorkerPool* pool = m_pool.get();
+    const int T = pool ? std::min<int>({pool->size(), static_cast<int>(m_scratch.size()),
+                                        static_cast<int>(m_block_scratch.size())})
+                       : 1;
+    const Index n = model.num_nodes();
+    auto copy_diagonal = [&](Index begin, Index end) {
       Scalar* d = diagonal.data();
-      for (std::size_t i = 0; i < std::size_t(model.num_nodes()); ++i)
-        for (std::size_t c = 0; c < 3; ++c) d[3 * i + c] = m_link_node_blocks[6 * i + c];
+      for (std::ptrdiff_t i = begin; i < end; ++i)
+        for (std::ptrdiff_t c = 0; c < 3; ++c) d[3 * i + c] = m_link_node_blocks[6 * i + c];
+    };
+    if (T > 1) {
+      auto links = [&](int t, int) {
+        if (t >= T) return;
+        std::vector<Scalar>& buf = m_scratch[std::size_t(t)];
+        std::vector<Scalar>& bb = m_block_scratch[std::size_t(t)];
+        std::fill(buf.begin(), buf.end(), Scalar(0));
+        std::fill(bb.begin(), bb.end(), Scalar(0));
+        const auto [begin, end] = detail::share(model.num_links(), t, T);
+        kernel(begin, end, buf.data());
+        add_link_node_blocks(model, blocks, begin, end, bb.data());
+      };
+      pool->run(links);
+      auto nodes = [&](int t, int) {
+        if (t >= T) return;
+        const auto [begin, end] = detail::share(n, t, T);
+        detail::sum_buffers(begin, end, rhs.data(), m_scratch, T, init);
+        init_link_node_blocks(model, h, begin, end, T);
+        copy_diagonal(begin, end);
+      };
+      pool->run(nodes);
+    } else {
+      detail::scatter_links(pool, n, model.num_links(), rhs.data(), m_scratch, init, kernel);
+      init_link_node_blocks(model, h, 0, n, 0);
+      add_link_node_blocks(model, blocks, 0, model.num_links(), m_link_node_blocks.data());
+      copy_diagonal(0, n);
     }
     if (!m_continuum.empty()) {
       // The elements: h F into the rhs, then their tangent (-h^2 H v into the rhs, diag(A)).
@@ -934,29 +987,39 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
 }
 
 template <typename Scalar>
-void ForceModel<Scalar>::link_node_blocks(const SphereModel<Scalar>& model, const Scalar* blocks,
-                                          Scalar h) noexcept {
-  const Index n = model.num_nodes();
+void ForceModel<Scalar>::init_link_node_blocks(const SphereModel<Scalar>& model, Scalar h,
+                                               Index begin, Index end, int T) noexcept {
   const Scalar* mass = model.masses().data();
   const Scalar md = Scalar(1) + h * m_options.drag;
   Scalar* out = m_link_node_blocks.data();
-  for (Index i = 0; i < n; ++i) {
+  for (Index i = begin; i < end; ++i) {
     Scalar* o = out + 6 * std::ptrdiff_t(i);
     o[0] = o[1] = o[2] = md * mass[i];
     o[3] = o[4] = o[5] = Scalar(0);
+    for (int t = 0; t < T; ++t) {
+      const Scalar* b = m_block_scratch[std::size_t(t)].data() + 6 * std::ptrdiff_t(i);
+      for (int c = 0; c < 6; ++c) o[c] += b[c];
+    }
   }
+}
+
+template <typename Scalar>
+void ForceModel<Scalar>::add_link_node_blocks(const SphereModel<Scalar>& model,
+                                              const Scalar* blocks, Index begin, Index end,
+                                              Scalar* out) const noexcept {
   // a n n^T + b I on both ends of a link. The first node of a run of links that share it (the
   // builder sorts links so) sums in registers.
   const Index* ij = model.links().data();
-  for (const auto& [begin, end] : m_force_ranges)
-    for (Index l = begin; l < end;) {
+  for (const auto& [a, b] : m_force_ranges) {
+    const Index lo = std::max(a, begin), hi = std::min(b, end);
+    for (Index l = lo; l < hi;) {
       const Index i = ij[2 * l];
       Scalar acc[6] = {0, 0, 0, 0, 0, 0};
-      for (; l < end && ij[2 * l] == i; ++l) {
+      for (; l < hi && ij[2 * l] == i; ++l) {
         const Scalar* B = blocks + std::ptrdiff_t(implicit_block_size) * l;
-        const Scalar a = B[3], b = B[4];
-        const Scalar d[6] = {a * B[0] * B[0] + b, a * B[1] * B[1] + b, a * B[2] * B[2] + b,
-                             a * B[0] * B[1],     a * B[0] * B[2],     a * B[1] * B[2]};
+        const Scalar al = B[3], be = B[4];
+        const Scalar d[6] = {al * B[0] * B[0] + be, al * B[1] * B[1] + be, al * B[2] * B[2] + be,
+                             al * B[0] * B[1],      al * B[0] * B[2],      al * B[1] * B[2]};
         Scalar* o = out + 6 * std::ptrdiff_t(ij[2 * l + 1]);
         for (int c = 0; c < 6; ++c) {
           o[c] += d[c];
@@ -966,6 +1029,7 @@ void ForceModel<Scalar>::link_node_blocks(const SphereModel<Scalar>& model, cons
       Scalar* o = out + 6 * std::ptrdiff_t(i);
       for (int c = 0; c < 6; ++c) o[c] += acc[c];
     }
+  }
 }
 
 template <typename Scalar>

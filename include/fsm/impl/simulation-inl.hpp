@@ -365,7 +365,8 @@ StepReport<Scalar> Simulation<Scalar>::step(Scalar dt) noexcept {
   if (!m_integrator->implicit())
     report.softened_contacts = m_forces.limit_contact_stiffness(m_model, dt);
   const Scalar contact_time = m_forces.contact_time();
-  m_forces.start_contacts(m_model);
+  // (An implicit step's contact work does not use the start forces: contact_work().)
+  m_forces.start_contacts(m_model, !m_integrator->implicit());
   for (int level = 0; level <= policy.max_substep_halvings; ++level) {
     const int n = 1 << level;
     const Scalar h = dt / Scalar(n);
