@@ -2,6 +2,8 @@
 // momentum balance between instruments and tissue; the penalty, damping and friction laws; part
 // contact; no tunnelling at 0.5 m/s and 1 kHz; degenerate input; sleeping.
 
+#include <cmath>
+#include <limits>
 #include <numeric>
 #include <random>
 #include <tuple>
@@ -57,6 +59,28 @@ std::vector<Instrument<double>> random_instruments(std::mt19937& rng) {
     out.push_back(*ins);
   }
   return out;
+}
+
+// The hash cell is floor(p / cell) without libm: integers, negative fractions (truncation would
+// round them up), the clamp at +-2^28, and a NaN (no undefined conversion).
+TEST(ContactSolver, HashCellIsTheFloorOfTheScaledPoint) {
+  using fsm::collision::detail::hash_cell;
+  const double inv = 1.0 / 0.002;  // 2 mm cells
+  EXPECT_EQ(hash_cell(Eigen::RowVector3d(0.0, -0.0, 0.001), inv), Eigen::Vector3i(0, 0, 0));
+  EXPECT_EQ(hash_cell(Eigen::RowVector3d(-0.001, -0.002, -0.0030001), inv),
+            Eigen::Vector3i(-1, -1, -2));
+  EXPECT_EQ(hash_cell(Eigen::RowVector3d(0.004, 0.0039999, -1e-12), inv),
+            Eigen::Vector3i(2, 1, -1));
+  const double big = 1e300, nan = std::numeric_limits<double>::quiet_NaN();
+  const int lim = 1 << 28;
+  EXPECT_EQ(hash_cell(Eigen::RowVector3d(big, -big, nan), inv), Eigen::Vector3i(lim, -lim, -lim));
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int k = 0; k < 1000; ++k) {
+    const Eigen::RowVector3d p(u(rng), u(rng), 1e-3 * u(rng));
+    const Eigen::Vector3i c = hash_cell(p, inv);
+    for (int a = 0; a < 3; ++a) EXPECT_EQ(c[a], int(std::floor(p[a] * inv))) << p;
+  }
 }
 
 TEST(ContactSolver, SpatialHashMatchesBruteForce) {

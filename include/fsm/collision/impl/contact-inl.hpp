@@ -238,19 +238,24 @@ Index ContactSolver<Scalar>::add_instrument(const Instrument<Scalar>& instrument
 }
 
 namespace detail {
+/// floor(a) for a in [-2^28, 2^28], without a call into libm (the baseline x86-64 build has no
+/// rounding instruction): truncate, then step down for a negative non-integer.
+inline int floor_to_int(double a) noexcept {
+  const int t = static_cast<int>(a);
+  return t - (a < double(t) ? 1 : 0);
+}
+
 /// The hash cell of a point: floor(p / cell), clamped to +-2^28 so that converting to int (and
-/// differences of cells) stays defined for any finite coordinate.
+/// differences of cells) stays defined for any coordinate (a NaN gives the lowest cell).
 template <typename Derived, typename Scalar>
 Eigen::Vector3i hash_cell(const Eigen::MatrixBase<Derived>& p, Scalar inverse_cell) noexcept {
   constexpr double k_limit = double(1 << 28);
-  return (p.template cast<double>() * double(inverse_cell))
-      .array()
-      .floor()
-      .max(-k_limit)
-      .min(k_limit)
-      .template cast<int>()
-      .matrix()
-      .transpose();
+  auto cell = [](double a) {
+    return floor_to_int(a > -k_limit ? (a < k_limit ? a : k_limit) : -k_limit);
+  };
+  const double inv = double(inverse_cell);
+  return Eigen::Vector3i(cell(double(p(0)) * inv), cell(double(p(1)) * inv),
+                         cell(double(p(2)) * inv));
 }
 }  // namespace detail
 
@@ -263,11 +268,12 @@ std::uint32_t ContactSolver<Scalar>::slot(const Eigen::Vector3i& c) const noexce
 
 template <typename Scalar>
 void ContactSolver<Scalar>::update_hash(const SphereModel<Scalar>& model) noexcept {
-  const auto x = model.positions();
+  const Scalar* x = model.positions().data();
   const Scalar inv = Scalar(1) / m_cell;
   for (Index i = 0; i < model.num_nodes(); ++i) {
-    const auto p = x.row(i);
-    if (!p.allFinite()) continue;  // keep the old cell; such a state is never stepped
+    const Eigen::Map<const Vector3<Scalar>> p(x + 3 * std::ptrdiff_t(i));
+    if (!(std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2])))
+      continue;  // keep the old cell; such a state is never stepped
     const Eigen::Vector3i c = detail::hash_cell(p, inv);
     const std::size_t k = std::size_t(i);
     if (m_hashed && c == m_cell_of[k]) continue;
