@@ -197,6 +197,11 @@ TEST(ForceModel, SimdImplicitLinkKernelsMatchTheScalarLoops) {
           EXPECT_LE(worst, 1e-13 * scale);
           EXPECT_LE((ra - rb).cwiseAbs().maxCoeff(), 1e-13 * ra.cwiseAbs().maxCoeff());
           EXPECT_LE((da - db).cwiseAbs().maxCoeff(), 1e-13 * da.cwiseAbs().maxCoeff());
+          // The per-node 3 x 3 blocks of the block-Jacobi preconditioner.
+          Eigen::ArrayXd pa(6 * n), pb(6 * n);
+          scalar.implicit_diagonal_blocks(model, ba.data(), pa.data());
+          simd.implicit_diagonal_blocks(model, bb.data(), pb.data());
+          EXPECT_LE((pa - pb).abs().maxCoeff(), 1e-13 * pa.abs().maxCoeff());
           for (Index i = 0; i < n; ++i)
             for (int c = 0; c < 3; ++c) p(i, c) = g(rng);
           scalar.apply_implicit(model, ba.data(), p, ya);
