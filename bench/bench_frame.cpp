@@ -24,16 +24,19 @@ const TissueModel<double>& uterus() {
                                  "bench_frame");
 }
 
-// Args: CG tolerance exponent (3 = 1e-3), sleeping, force threads.
+// Args: CG tolerance exponent (3 = 1e-3), sleeping, force threads, adaptive threads (the pool
+// only while it is faster: Simulation::Options::adaptive_threads).
 void BM_WholeFrame(benchmark::State& state) {
   const double tolerance = std::pow(10.0, -double(state.range(0)));
   const bool sleep = state.range(1) != 0;
   const int threads = int(state.range(2));
+  const bool adaptive = state.range(3) != 0;
   const auto& model = uterus();
   Simulation<double>::Options so;
   so.forces.drag = 5;
   so.forces.threads = threads;
   so.sleep.enabled = sleep;
+  so.adaptive_threads = adaptive;
   Simulation<double> sim(model.spheres, so);
   ImplicitEulerIntegrator<double>::Options io;
   io.tolerance = tolerance;
@@ -48,7 +51,7 @@ void BM_WholeFrame(benchmark::State& state) {
   Positions<double> surface = model.skin.rest.vertices, normals = surface;
   collision::TriangleBvh<double> bvh(model.skin.rest.vertices, model.skin.rest.faces);
   long step = 0;
-  long iterations = 0, probe_contacts = 0;
+  long iterations = 0, probe_contacts = 0, on_pool = 0;
   auto frame = [&] {
     for (int s = 0; s < 17; ++s, ++step) {
       const double t = double(step) * 1e-3;
@@ -56,6 +59,7 @@ void BM_WholeFrame(benchmark::State& state) {
       probe.press(contacts, k, probe.site.radius + 0.001 + 0.001 * std::sin(2 * pi * t),
                   0.002 * pi * std::cos(2 * pi * t));
       contacts.compute(sim.model(), sim.forces());
+      on_pool += sim.uses_pool() ? 1 : 0;
       iterations += sim.step(1e-3).solver_iterations;
       contacts.collect(sim.forces());
       for (Index c = 0; c < contacts.num_contacts(); ++c)
@@ -66,7 +70,7 @@ void BM_WholeFrame(benchmark::State& state) {
     bvh.refit(surface);
   };
   for (int f = 0; f < 60; ++f) frame();  // 1 s of settling
-  iterations = probe_contacts = 0;
+  iterations = probe_contacts = on_pool = 0;
   const Index rebuilds_before = contacts.pair_list_rebuilds();
   long frames = 0;
   for (auto _ : state) {
@@ -78,18 +82,21 @@ void BM_WholeFrame(benchmark::State& state) {
   state.counters["CG_per_step"] = double(iterations) / double(17 * frames);
   state.counters["surface_vertices"] = double(model.skin.num_vertices());
   state.counters["probe_contacts"] = double(probe_contacts) / double(17 * std::max(frames, 1L));
+  if (threads > 1)
+    state.counters["pool_share"] = double(on_pool) / double(17 * std::max(frames, 1L));
   // How often the part-contact pair list was rebuilt (its Verlet skin crossed), per step.
   state.counters["pair_rebuilds"] =
       double(contacts.pair_list_rebuilds() - rebuilds_before) / double(17 * std::max(frames, 1L));
   if (probe_contacts == 0) state.SkipWithError("the probe never touched the body");
 }
 BENCHMARK(BM_WholeFrame)
-    ->ArgNames({"tol_exp", "sleep", "threads"})
-    ->Args({6, 0, 1})
-    ->Args({3, 0, 1})
-    ->Args({3, 1, 1})
-    ->Args({3, 0, 2})
-    ->Args({2, 0, 1})
+    ->ArgNames({"tol_exp", "sleep", "threads", "adaptive"})
+    ->Args({6, 0, 1, 0})
+    ->Args({3, 0, 1, 0})
+    ->Args({3, 1, 1, 0})
+    ->Args({3, 0, 2, 0})
+    ->Args({3, 0, 2, 1})
+    ->Args({2, 0, 1, 0})
     ->Unit(benchmark::kMillisecond)
     ->MinTime(2.0);
 

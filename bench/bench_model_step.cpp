@@ -9,10 +9,13 @@
 //   bench_model_step MODEL.fsm [--law links|continuum] [--threads N] [--tolerance TOL]
 //                    [--steps N] [--no-probe] [--continuum-part NAME]
 //                    [--element-tangent-quality Q] [--smoothing element|face|edge|node]
-//                    [--gravity-y] [--no-simd] [--detection-margin F] [--json]
+//                    [--gravity-y] [--no-simd] [--detection-margin F] [--adaptive-threads]
+//                    [--json]
 // --gravity-y: gravity along -y (the Visible Human data set's down) instead of -z.
 // --no-simd: the scalar link loops (ForceModel::Options::simd = false).
 // --detection-margin: collision::ContactOptions::detection_margin (0: penetrating spheres only).
+// --adaptive-threads: Simulation::Options::adaptive_threads (the pool only while it is faster);
+// the JSON's "pool_share" is the share of the timed steps that ran on the pool.
 //
 // --law continuum puts every tetrahedral part on the continuum law, or only NAME with
 // --continuum-part.
@@ -39,7 +42,7 @@ int main(int argc, char** argv) {
   double element_tangent_quality = ForceModel<double>::Options{}.element_tangent_quality;
   double detection_margin = collision::ContactOptions<double>{}.detection_margin;
   bool probe = true, json = false, gravity_y = false, simd = true, flutter_guard = true,
-       extrapolate = true, reuse = true;
+       extrapolate = true, reuse = true, adaptive = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&]() -> std::string {
@@ -75,6 +78,8 @@ int main(int argc, char** argv) {
       extrapolate = false;
     else if (a == "--no-reuse-end-forces")
       reuse = false;
+    else if (a == "--adaptive-threads")
+      adaptive = true;
     else if (a == "--detection-margin")
       detection_margin = std::atof(value().c_str());
     else if (a == "--json")
@@ -88,7 +93,7 @@ int main(int argc, char** argv) {
           "[--steps N] [--no-probe] [--continuum-part NAME] "
           "[--element-tangent-quality Q] [--smoothing element|face|edge|node] [--gravity-y] "
           "[--no-simd] [--no-flutter-guard] [--no-extrapolation] [--no-reuse-end-forces] "
-          "[--detection-margin F] [--json]\n",
+          "[--detection-margin F] [--adaptive-threads] [--json]\n",
           argv[0]);
       return 2;
     }
@@ -127,6 +132,7 @@ int main(int argc, char** argv) {
                                                        : StrainSmoothing::element;
     if (gravity_y) so.forces.gravity = Vector3<double>(0, -9.81, 0);
     so.divergence.max_substep_halvings = 2;  // as the demo and servo_latency
+    so.adaptive_threads = adaptive;
     Simulation<double> sim(std::move(spheres), so);
     ImplicitEulerIntegrator<double>::Options io;
     io.tolerance = tolerance;
@@ -152,9 +158,10 @@ int main(int argc, char** argv) {
     diverged_before = diverged;  // while sagging and pressing
     diverged = recovered = 0;    // count the timed steps only
     std::vector<double> t(std::size_t(steps), 0.0);
-    long iterations = 0;
+    long iterations = 0, on_pool = 0;
     Index probe_contacts = 0;
     for (int s = 0; s < steps; ++s) {
+      on_pool += sim.uses_pool() ? 1 : 0;
       const auto t0 = std::chrono::steady_clock::now();
       const StepReport<double> r = step();
       t[std::size_t(s)] =
@@ -182,7 +189,8 @@ int main(int argc, char** argv) {
           "\"recovered\": %ld, \"diverged\": %ld, \"diverged_before_timing\": %ld, "
           "\"element_tangent_quality\": %g, \"element_tangents\": %d, \"fluttered\": %d, "
           "\"flutter_guard\": %s, \"extrapolated_warm_start\": %s, \"reuse_end_forces\": %s, "
-          "\"gravity\": \"%s\", \"smoothing\": \"%s\"}\n",
+          "\"gravity\": \"%s\", \"smoothing\": \"%s\", \"adaptive_threads\": %s, "
+          "\"pool_share\": %.3f}\n",
           path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
           int(sim.model().num_tetrahedra()), law.c_str(), threads, tolerance,
           probe ? "true" : "false", int(probe_contacts), int(contacts.num_contacts()), steps,
@@ -190,7 +198,7 @@ int main(int argc, char** argv) {
           diverged_before, element_tangent_quality, int(sim.forces().continuum_element_tangents()),
           int(sim.forces().continuum_fluttered_elements()), flutter_guard ? "true" : "false",
           extrapolate ? "true" : "false", reuse ? "true" : "false", gravity_y ? "-y" : "-z",
-          smoothing.c_str());
+          smoothing.c_str(), adaptive ? "true" : "false", double(on_pool) / double(steps));
     else
       std::printf(
           "%s: %d spheres, %d links, %d tetrahedra; %s law (%s strain), %d thread(s), CG to %g; "

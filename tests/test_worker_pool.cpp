@@ -71,6 +71,28 @@ TEST(WorkerPool, NoWakeUpIsLostWhenHelpersSleepBetweenJobs) {
   EXPECT_EQ(jobs.get(), 3L * 20000);
 }
 
+// A share whose helper has not claimed it when the caller is done with its own runs on the caller
+// (a descheduled or sleeping helper then costs no wait), and still exactly once. Helpers that
+// sleep after every job (no spin) are slower to wake than the caller's empty share.
+TEST(WorkerPool, TheCallerRunsSharesNoHelperHasClaimed) {
+  WorkerPool pool(3, std::chrono::microseconds(0));
+  const std::thread::id caller = std::this_thread::get_id();
+  int on_caller = 0;
+  for (int job = 0; job < 20; ++job) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));  // the helpers fall asleep
+    std::atomic<int> runs[3] = {0, 0, 0};
+    std::atomic<int> stolen{0};
+    auto fn = [&](int t, int) {
+      runs[t].fetch_add(1);
+      if (t > 0 && std::this_thread::get_id() == caller) stolen.fetch_add(1);
+    };
+    pool.run(fn);
+    for (int t = 0; t < 3; ++t) EXPECT_EQ(runs[t].load(), 1) << "job " << job << " share " << t;
+    on_caller += stolen.load();
+  }
+  EXPECT_GT(on_caller, 0);
+}
+
 // A pool copied with what holds it is a pool of its own, of the same size.
 TEST(WorkerPool, HandleCopiesMakeTheirOwnPool) {
   detail::PoolHandle a(2);
@@ -125,17 +147,19 @@ TEST(WorkerPool, TwoThreadsPrepareTheImplicitSystemOfOne) {
 // Twenty implicit steps of `m` on `threads` threads (CG far below the comparisons' tolerance:
 // the threads sum in different orders, which must not move CG's last iteration); returns where
 // the nodes end, after checking that every step advanced and the model moved.
-Positions<double> twenty_steps(SphereModel<double> m, int threads, double quality = 0.3) {
+Positions<double> twenty_steps(SphereModel<double> m, int threads, double quality = 0.3,
+                               int steps = 20, bool adaptive = false) {
   Simulation<double>::Options o;
   o.forces.threads = threads;
   o.forces.drag = 5;
   o.forces.element_tangent_quality = quality;
+  o.adaptive_threads = adaptive;
   Simulation<double> sim(std::move(m), o);
   ImplicitEulerIntegrator<double>::Options io;
   io.tolerance = 1e-12;
   io.max_iterations = 1000;
   sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
-  for (int s = 0; s < 20; ++s) EXPECT_TRUE(sim.step(1e-3).advanced());
+  for (int s = 0; s < steps; ++s) EXPECT_TRUE(sim.step(1e-3).advanced());
   EXPECT_GT((sim.model().positions() - sim.model().rest_positions()).norm(), 1e-6);
   return Positions<double>(sim.model().positions());
 }
@@ -171,6 +195,41 @@ TEST(WorkerPool, TwoThreadsStepTheContinuumLawLikeOne) {
     EXPECT_TRUE(
         matrices_near(twenty_steps(model(), 1, quality), twenty_steps(model(), 2, quality), 1e-9))
         << "element tangent quality " << quality;
+}
+
+// Simulation::Options::adaptive_threads: 4 + 32 steps timed on the pool, as many without it, then
+// the faster for 1,024 steps, then both again; whichever runs, the steps are one thread's, to
+// rounding.
+TEST(WorkerPool, AdaptiveThreadsTimeBothAndStepLikeOneThread) {
+  if (detail::max_threads() < 2) GTEST_SKIP() << "a machine with one hardware thread";
+  auto model = [] {
+    std::mt19937 rng(5);
+    SphereModel<double> m = random_model<double>(rng, {4, 3, 4}, 0.3, true);
+    fix_below(m, 2);
+    return m;
+  };
+  Simulation<double>::Options o;
+  o.forces.threads = 2;
+  o.adaptive_threads = true;
+  Simulation<double> sim(model(), o);
+  std::vector<int> on;
+  for (int s = 1; s <= 1100; ++s) {
+    ASSERT_TRUE(sim.step(1e-3).advanced());
+    on.push_back(sim.uses_pool() ? 1 : 0);
+  }
+  EXPECT_EQ(on[34], 1);  // after 35 steps: still timing the pool
+  EXPECT_EQ(on[35], 0);  // after 36: timing one thread
+  EXPECT_EQ(on[70], 0);
+  for (int s = 73; s < 1096; ++s) ASSERT_EQ(on[std::size_t(s - 1)], on[71]) << s;  // the choice
+  EXPECT_EQ(on[1095], 1);  // after 72 + 1,024 steps: timing the pool again
+  // Without the option the pool is never set aside.
+  o.adaptive_threads = false;
+  Simulation<double> fixed(model(), o);
+  for (int s = 0; s < 40; ++s) ASSERT_TRUE(fixed.step(1e-3).advanced());
+  EXPECT_TRUE(fixed.uses_pool());
+  // Through both trials and into the choice, the same end as one thread.
+  EXPECT_TRUE(matrices_near(twenty_steps(model(), 1, 0.3, 120),
+                            twenty_steps(model(), 2, 0.3, 120, true), 1e-9));
 }
 
 }  // namespace

@@ -187,6 +187,12 @@ class ForceModel {
                        const std::vector<Index>& removed_tetrahedra) noexcept;
 
   [[nodiscard]] const Options& options() const noexcept { return m_options; }
+  /// @brief With Options::threads above 1: false sets the worker pool aside, so the loops run on
+  /// the calling thread (as with one thread, to rounding), true takes it back. Allocates nothing;
+  /// Simulation::Options::adaptive_threads switches it between steps.
+  void use_pool(bool on) noexcept { m_pool.set_enabled(on); }
+  /// @brief Whether the loops run on a pool (Options::threads above 1 and not set aside).
+  [[nodiscard]] bool uses_pool() const noexcept { return m_pool.get() != nullptr; }
   /// @brief Changes the options (thread buffers are resized here, not in the step); fsm::Error
   /// for threads < 1 or non-finite gravity.
   void set_options(const Options& options);

@@ -125,6 +125,14 @@ class Simulation {
     typename ForceModel<Scalar>::Options forces{};
     DivergencePolicy<Scalar> divergence{};
     SleepPolicy<Scalar> sleep{};
+    /// With forces.threads above 1: now and then, time 32 steps on the worker pool and 32 without
+    /// it (ForceModel::use_pool) and keep the faster for the next 1,024 steps. A second core that
+    /// is slow to reach can make the pool slower than one thread: on a 2-vCPU virtual machine
+    /// whose vCPUs the host places far apart, one hand-over costs 0.6-0.8 us instead of 0.1 us
+    /// and the uterus's implicit step took 205 us on two threads against 131 us on one
+    /// (docs/benchmarks.md). Off by default: the pool and one thread sum in different orders, so
+    /// such a run is reproducible only to rounding.
+    bool adaptive_threads{false};
   };
 
   /// @brief Validates the model (fsm::Error on bad input) and prepares everything for stepping.
@@ -135,6 +143,9 @@ class Simulation {
 
   /// @brief Advances by dt seconds. Never allocates, never throws.
   StepReport<Scalar> step(Scalar dt) noexcept;
+  /// @brief Whether the steps now run on the worker pool (forces.threads above 1, and not set
+  /// aside by Options::adaptive_threads).
+  [[nodiscard]] bool uses_pool() const noexcept { return m_forces.uses_pool(); }
 
   /// @brief The model (positions and velocities may be edited between steps).
   [[nodiscard]] SphereModel<Scalar>& model() noexcept { return m_model; }
@@ -201,6 +212,8 @@ class Simulation {
   void reset() noexcept;
 
  private:
+  StepReport<Scalar> advance(Scalar dt) noexcept;  // step() without the thread trials
+  void time_threads(double seconds) noexcept;      // Options::adaptive_threads
   [[nodiscard]] Scalar total_energy() const noexcept;
   void save_state() noexcept;
   void restore_state() noexcept;
@@ -236,6 +249,14 @@ class Simulation {
   Scalar m_external_work{0};
   Scalar m_energy_floor{0};
   Scalar m_time{0};
+  // Options::adaptive_threads: phase 0 times steps on the pool, 1 without, 2 runs the faster;
+  // `count` steps into the phase.
+  struct ThreadTrial {
+    int phase{0};
+    int count{0};
+    double seconds[2]{0, 0};
+  };
+  ThreadTrial m_thread_trial;
 };
 
 extern template class Simulation<float>;

@@ -72,7 +72,8 @@ void define_simulation(py::module_& m) {
 Simulation(model, integrator="implicit_euler", gravity=(0, 0, -9.81), damping="along_link",
            threads=1, check_energy=True, energy_tolerance=1.0, max_substep_halvings=0,
            drag=0.0, element_tangent_quality=0.3, strain_smoothing="element",
-           smoothing_element_share=0.1, flutter_guard=True, reuse_end_forces=True)
+           smoothing_element_share=0.1, flutter_guard=True, reuse_end_forces=True,
+           adaptive_threads=False)
 
 The model is copied in; sim.model is the simulated one. integrator is a name from
 fsm.integrator_names() or an fsm.Integrator instance (copied). drag (1/s) is the surroundings'
@@ -86,7 +87,9 @@ with smoothing_element_share of the energy kept on each element's own strain. fl
 a continuum element whose volume swings back and forth from step to step gets the element tangent
 from then on (False: the negative control). reuse_end_forces: the energy check at the end of an
 implicit step evaluates the continuum elements' forces there, and the next step reuses them (the
-same run to the last bit; False evaluates both). A
+same run to the last bit; False evaluates both). adaptive_threads: with threads above 1, time
+steps on the worker pool and without it now and then and keep the faster (sim.uses_pool says
+which runs; the two agree to rounding). A
 diverging step is rolled back and reported, never left as NaN. Raises fsm.Error for a bad model or
 option.)")
       .def(py::init([](const SphereModel<Scalar>& model, const py::object& integrator,
@@ -94,8 +97,9 @@ option.)")
                        bool check_energy, Scalar energy_tolerance, int max_substep_halvings,
                        Scalar drag, Scalar element_tangent_quality,
                        const std::string& strain_smoothing, Scalar smoothing_element_share,
-                       bool flutter_guard, bool reuse_end_forces) {
+                       bool flutter_guard, bool reuse_end_forces, bool adaptive_threads) {
              typename Sim::Options o;
+             o.adaptive_threads = adaptive_threads;
              o.forces.strain_smoothing = to_smoothing(strain_smoothing);
              o.forces.smoothing_element_share = smoothing_element_share;
              o.forces.drag = drag;
@@ -116,9 +120,13 @@ option.)")
            py::arg("energy_tolerance") = 1.0, py::arg("max_substep_halvings") = 0,
            py::arg("drag") = 0.0, py::arg("element_tangent_quality") = 0.3,
            py::arg("strain_smoothing") = "element", py::arg("smoothing_element_share") = 0.1,
-           py::arg("flutter_guard") = true, py::arg("reuse_end_forces") = true)
+           py::arg("flutter_guard") = true, py::arg("reuse_end_forces") = true,
+           py::arg("adaptive_threads") = false)
       .def("step", &Sim::step, py::arg("dt"), py::call_guard<py::gil_scoped_release>(),
            "Advances by dt seconds; returns a StepReport. Never raises.")
+      .def_property_readonly("uses_pool", &Sim::uses_pool,
+                             "Whether the steps now run on the worker pool (threads above 1, not "
+                             "set aside by adaptive_threads).")
       .def(
           "run",
           [](Sim& sim, int steps, Scalar dt) {

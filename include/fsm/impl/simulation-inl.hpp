@@ -3,6 +3,7 @@
 // Definitions of Simulation's members; included at the bottom of fsm/simulation.hpp.
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 
@@ -42,6 +43,8 @@ Simulation<Scalar>::Simulation(SphereModel<Scalar> model,
 template <typename Scalar>
 void Simulation<Scalar>::refresh() {
   m_model.validate();
+  m_thread_trial = ThreadTrial{};  // the threads' trials start again, on the pool
+  m_forces.use_pool(true);
   const auto& d = m_options.divergence;
   if (!(d.energy_tolerance >= 0) || !(d.energy_floor_strain >= 0) || d.max_substep_halvings < 0 ||
       d.max_substep_halvings > 20)
@@ -329,6 +332,41 @@ bool Simulation<Scalar>::state_matches_saved() const noexcept {
 
 template <typename Scalar>
 StepReport<Scalar> Simulation<Scalar>::step(Scalar dt) noexcept {
+  if (!m_options.adaptive_threads || m_options.forces.threads < 2) return advance(dt);
+  using Clock = std::chrono::steady_clock;
+  const auto start = Clock::now();
+  const StepReport<Scalar> report = advance(dt);
+  time_threads(std::chrono::duration<double>(Clock::now() - start).count());
+  return report;
+}
+
+template <typename Scalar>
+void Simulation<Scalar>::time_threads(double seconds) noexcept {
+  // Each trial's first steps are not timed: helpers that slept wake up, caches refill.
+  constexpr int k_skip = 4, k_trial = 32, k_period = 1024;
+  ThreadTrial& t = m_thread_trial;
+  ++t.count;
+  if (t.phase == 2) {
+    if (t.count >= k_period) {  // time both again
+      t = ThreadTrial{};
+      m_forces.use_pool(true);
+    }
+    return;
+  }
+  if (t.count > k_skip) t.seconds[t.phase] += seconds;
+  if (t.count < k_skip + k_trial) return;
+  t.count = 0;
+  if (t.phase == 0) {
+    t.phase = 1;
+    m_forces.use_pool(false);
+  } else {
+    t.phase = 2;
+    m_forces.use_pool(t.seconds[0] <= t.seconds[1]);
+  }
+}
+
+template <typename Scalar>
+StepReport<Scalar> Simulation<Scalar>::advance(Scalar dt) noexcept {
   StepReport<Scalar> report;
   if (!(dt > Scalar(0)) || !std::isfinite(dt)) {
     report.status = StepStatus::invalid_time_step;
