@@ -1,6 +1,9 @@
 // Force evaluation: time per link for lattices of about 1e3 to 1e6 links, on 1 and 2 threads.
 
+#include <atomic>
+
 #include "common.hpp"
+#include "fsm/detail/worker_pool.hpp"
 
 namespace fsm::bench {
 namespace {
@@ -44,6 +47,19 @@ void BM_ElasticEnergy(benchmark::State& state) {
   per_link(state, double(model.num_links()));
 }
 BENCHMARK(BM_ElasticEnergy)->Arg(cells_for_links(1e4))->Arg(cells_for_links(1e6))->ArgName("cells");
+
+// One dispatch of a job with almost no work on the worker pool: the hand-over every parallel loop
+// pays (a helper's share it has not claimed by the time the caller is done runs on the caller,
+// so this is at most one round trip to the other core). It depends on where the host puts the
+// vCPUs: docs/benchmarks.md.
+void BM_PoolDispatch(benchmark::State& state) {
+  detail::WorkerPool pool(int(state.range(0)));
+  std::atomic<long> sink{0};
+  auto job = [&](int t, int) { sink.fetch_add(t, std::memory_order_relaxed); };
+  for (auto _ : state) pool.run(job);
+  benchmark::DoNotOptimize(sink.load());
+}
+BENCHMARK(BM_PoolDispatch)->Arg(2)->ArgName("threads")->Unit(benchmark::kNanosecond);
 
 }  // namespace
 }  // namespace fsm::bench
