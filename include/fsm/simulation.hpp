@@ -126,7 +126,8 @@ class Simulation {
     DivergencePolicy<Scalar> divergence{};
     SleepPolicy<Scalar> sleep{};
     /// With forces.threads above 1: now and then, time 32 steps on the worker pool and 32 without
-    /// it (ForceModel::use_pool) and keep the faster for the next 1,024 steps. A second core that
+    /// it (ForceModel::use_pool; after a few untimed steps, at least 3 ms; plain steps only) and
+    /// keep the one of lower median for the next 1,024 steps. A second core that
     /// is slow to reach can make the pool slower than one thread: on a 2-vCPU virtual machine
     /// whose vCPUs the host places far apart, one hand-over costs 0.6-0.8 us instead of 0.1 us
     /// and the uterus's implicit step took 205 us on two threads against 131 us on one
@@ -212,8 +213,8 @@ class Simulation {
   void reset() noexcept;
 
  private:
-  StepReport<Scalar> advance(Scalar dt) noexcept;  // step() without the thread trials
-  void time_threads(double seconds) noexcept;      // Options::adaptive_threads
+  StepReport<Scalar> advance(Scalar dt) noexcept;          // step() without the thread trials
+  void time_threads(double seconds, bool plain) noexcept;  // Options::adaptive_threads
   [[nodiscard]] Scalar total_energy() const noexcept;
   void save_state() noexcept;
   void restore_state() noexcept;
@@ -249,12 +250,16 @@ class Simulation {
   Scalar m_external_work{0};
   Scalar m_energy_floor{0};
   Scalar m_time{0};
-  // Options::adaptive_threads: phase 0 times steps on the pool, 1 without, 2 runs the faster;
-  // `count` steps into the phase.
+  // Options::adaptive_threads: phase 0 times steps on the pool, 1 without, 2 runs the faster for
+  // `period` steps; `count` timed steps into a trial (after its untimed warm-up), or steps into
+  // phase 2.
   struct ThreadTrial {
+    static constexpr int steps = 32, period = 1024;
     int phase{0};
     int count{0};
-    double seconds[2]{0, 0};
+    int warm_steps{0};
+    double warm_seconds{0};
+    double seconds[2][steps]{};
   };
   ThreadTrial m_thread_trial;
 };

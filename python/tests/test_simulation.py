@@ -168,14 +168,15 @@ def test_drag_and_element_tangent_quality_options(block):
         runs.append((sim.model.positions.copy(), energies))
     assert np.array_equal(runs[0][0], runs[1][0])
     assert runs[0][1] == runs[1][1]
-    # adaptive_threads: after 36 steps timed on the pool, the next ones run without it.
+    # adaptive_threads: after a warm-up and 32 steps timed on the pool, steps run without it.
     sim = fsm.Simulation(model, threads=2, adaptive_threads=True)
-    pool = sim.uses_pool
-    for _ in range(36):
-        sim.step(1e-3)
-    assert not sim.uses_pool
+    if sim.uses_pool:  # (one CPU: no pool)
+        steps = 0
+        while sim.uses_pool and steps < 3000:
+            sim.step(1e-3)
+            steps += 1
+        assert 36 <= steps < 3000
     assert not fsm.Simulation(model).uses_pool  # one thread: no pool
-    assert pool == (fsm.Simulation(model, threads=2).uses_pool)  # (one CPU: no pool either)
     # Drag reaches the forces: in the first 5 ms of sagging the block moves slower with it.
     speed = []
     for drag in (0.0, 1000.0):

@@ -336,33 +336,47 @@ StepReport<Scalar> Simulation<Scalar>::step(Scalar dt) noexcept {
   using Clock = std::chrono::steady_clock;
   const auto start = Clock::now();
   const StepReport<Scalar> report = advance(dt);
-  time_threads(std::chrono::duration<double>(Clock::now() - start).count());
+  time_threads(std::chrono::duration<double>(Clock::now() - start).count(),
+               report.status == StepStatus::ok);
   return report;
 }
 
 template <typename Scalar>
-void Simulation<Scalar>::time_threads(double seconds) noexcept {
-  // Each trial's first steps are not timed: helpers that slept wake up, caches refill.
-  constexpr int k_skip = 4, k_trial = 32, k_period = 1024;
+void Simulation<Scalar>::time_threads(double seconds, bool plain) noexcept {
   ThreadTrial& t = m_thread_trial;
-  ++t.count;
   if (t.phase == 2) {
-    if (t.count >= k_period) {  // time both again
+    if (++t.count >= ThreadTrial::period) {  // time both again
       t = ThreadTrial{};
       m_forces.use_pool(true);
     }
     return;
   }
-  if (t.count > k_skip) t.seconds[t.phase] += seconds;
-  if (t.count < k_skip + k_trial) return;
-  t.count = 0;
+  // Each trial's first steps are not timed: at least 4 of them and 3 ms, while helpers that slept
+  // wake up, or, set aside, still spin (2 ms) on the other core.
+  if (t.warm_steps < 4 || t.warm_seconds < 3e-3) {
+    ++t.warm_steps;
+    t.warm_seconds += seconds;
+    return;
+  }
+  if (!plain) return;  // a step retried in halves, or not taken, is not compared
+  t.seconds[t.phase][t.count++] = seconds;
+  if (t.count < ThreadTrial::steps) return;
+  t.count = t.warm_steps = 0;
+  t.warm_seconds = 0;
   if (t.phase == 0) {
     t.phase = 1;
     m_forces.use_pool(false);
-  } else {
-    t.phase = 2;
-    m_forces.use_pool(t.seconds[0] <= t.seconds[1]);
+    return;
   }
+  // The medians: a step that met a new contact or a busy core moves them little.
+  auto median = [](double* a) {
+    double* mid = a + ThreadTrial::steps / 2;
+    std::nth_element(a, mid, a + ThreadTrial::steps);
+    return *mid;
+  };
+  const double pool = median(t.seconds[0]), one = median(t.seconds[1]);
+  t.phase = 2;
+  m_forces.use_pool(pool <= one);
 }
 
 template <typename Scalar>
