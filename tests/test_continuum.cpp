@@ -609,21 +609,34 @@ TEST(Continuum, StrainedElementsGetTheElementTangent) {
 // change, a small swing, a re-solve of the same step and a guard that is off mark nothing.
 TEST(Continuum, FlutteringElementsGetTheElementTangent) {
   const SphereModel<double> rest = continuum_block({2, 2, 2}, 0.005);
+  // The block's force model, without gravity, and an implicit step's buffers for it.
+  struct Prepared {
+    static ForceModel<double>::Options options(bool guard) {
+      ForceModel<double>::Options o;
+      o.gravity.setZero();
+      o.flutter_guard = guard;
+      return o;
+    }
+    Prepared(const SphereModel<double>& m, bool guard)
+        : f(m, options(guard)),
+          blocks(std::size_t(ForceModel<double>::implicit_block_size) * std::size_t(m.num_links())),
+          rhs(m.num_nodes(), 3),
+          diag(m.num_nodes(), 3) {}
+    void prepare(const SphereModel<double>& m, bool resolve = false) {
+      f.prepare_implicit(m, 1e-3, JacobianForm::definite, blocks.data(), rhs, diag, resolve);
+    }
+    ForceModel<double> f;
+    std::vector<double> blocks;
+    Positions<double> rhs, diag;
+  };
   auto run = [&](const std::vector<double>& js, bool guard, int passes = 1) {
     SphereModel<double> m = rest;
-    ForceModel<double>::Options o;
-    o.gravity.setZero();
-    o.flutter_guard = guard;
-    ForceModel<double> f(m, o);
-    std::vector<double> blocks(std::size_t(ForceModel<double>::implicit_block_size) *
-                               std::size_t(m.num_links()));
-    Positions<double> rhs(m.num_nodes(), 3), diag(m.num_nodes(), 3);
+    Prepared p(m, guard);
     for (const double j : js) {
       m.positions() = affine(m, M3(std::cbrt(j) * M3::Identity()));
-      for (int pass = 0; pass < passes; ++pass)
-        f.prepare_implicit(m, 1e-3, JacobianForm::definite, blocks.data(), rhs, diag, pass > 0);
+      for (int pass = 0; pass < passes; ++pass) p.prepare(m, pass > 0);
     }
-    return std::pair{f.continuum_fluttered_elements(), f.continuum_element_tangents()};
+    return std::pair{p.f.continuum_fluttered_elements(), p.f.continuum_element_tangents()};
   };
   const Index all = rest.num_tetrahedra();
   EXPECT_EQ(run({1.0, 1.01, 1.0}, true).first, 0) << "one reversal is a bounce, not flutter";
@@ -639,20 +652,15 @@ TEST(Continuum, FlutteringElementsGetTheElementTangent) {
   // (a rejected step, an edit), it leaves no trace.
   auto kept = [&](const std::vector<double>& js, bool use) {
     SphereModel<double> m = rest;
-    ForceModel<double>::Options o;
-    o.gravity.setZero();
-    ForceModel<double> f(m, o);
-    std::vector<double> blocks(std::size_t(ForceModel<double>::implicit_block_size) *
-                               std::size_t(m.num_links()));
-    Positions<double> rhs(m.num_nodes(), 3), diag(m.num_nodes(), 3);
+    Prepared p(m, true);
     for (const double j : js) {
       m.positions() = affine(m, M3(std::cbrt(j) * M3::Identity()));
-      (void)f.elastic_energy_keeping_forces(m);
-      f.reuse_kept_forces(use);
+      (void)p.f.elastic_energy_keeping_forces(m);
+      p.f.reuse_kept_forces(use);
       if (!use) m.positions() = rest.positions();  // rolled back to J = 1
-      f.prepare_implicit(m, 1e-3, JacobianForm::definite, blocks.data(), rhs, diag);
+      p.prepare(m);
     }
-    return std::pair{f.continuum_fluttered_elements(), f.kept_forces_reused()};
+    return std::pair{p.f.continuum_fluttered_elements(), p.f.kept_forces_reused()};
   };
   EXPECT_EQ(kept({1.0, 1.01, 1.0, 1.01}, true), std::pair(all, std::uint64_t(4)));
   EXPECT_EQ(kept({1.01, 1.01, 1.01, 1.01, 1.01}, false), std::pair(Index(0), std::uint64_t(0)))

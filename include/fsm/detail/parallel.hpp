@@ -50,12 +50,22 @@ void sum_buffers(Index begin, Index end, Scalar* out,
   }
 }
 
+/// No extra work per share of a scatter_links() on the pool.
+struct NoShareWork {
+  template <typename... A>
+  void operator()(A&&...) const noexcept {}
+};
+
 /// out[3i..3i+2] = init(i) for every node, plus kernel(begin, end, buffer) over link ranges.
-/// With a pool of T threads, `scratch` must hold T buffers of 3 * num_nodes scalars.
-template <typename Scalar, typename NodeInit, typename LinkKernel>
-void scatter_links(WorkerPool* pool, Index num_nodes, Index num_links, Scalar* out,
-                   std::vector<std::vector<Scalar>>& scratch, NodeInit&& init,
-                   LinkKernel&& kernel) noexcept {
+/// With a pool of T threads, `scratch` must hold T buffers of 3 * num_nodes scalars; then each
+/// thread also calls links_done(t, begin, end) after its links and nodes_done(begin, end, T)
+/// after its nodes (for work that rides on the same two dispatches). Returns whether it ran on
+/// the pool (the hooks were called).
+template <typename Scalar, typename NodeInit, typename LinkKernel, typename LinksDone = NoShareWork,
+          typename NodesDone = NoShareWork>
+bool scatter_links(WorkerPool* pool, Index num_nodes, Index num_links, Scalar* out,
+                   std::vector<std::vector<Scalar>>& scratch, NodeInit&& init, LinkKernel&& kernel,
+                   LinksDone&& links_done = {}, NodesDone&& nodes_done = {}) noexcept {
   const int T = pool ? std::min<int>(pool->size(), static_cast<int>(scratch.size())) : 1;
   if (T > 1) {
     const auto n3 = 3 * static_cast<std::ptrdiff_t>(num_nodes);
@@ -65,18 +75,21 @@ void scatter_links(WorkerPool* pool, Index num_nodes, Index num_links, Scalar* o
       std::fill(buf, buf + n3, Scalar(0));
       const auto [begin, end] = share(num_links, t, T);
       kernel(begin, end, buf);
+      links_done(t, begin, end);
     };
     pool->run(links);
     auto nodes = [&](int t, int) {
       if (t >= T) return;
       const auto [begin, end] = share(num_nodes, t, T);
       sum_buffers(begin, end, out, scratch, T, init);
+      nodes_done(begin, end, T);
     };
     pool->run(nodes);
-    return;
+    return true;
   }
   for (Index i = 0; i < num_nodes; ++i) init(i, out + 3 * std::ptrdiff_t(i));
   kernel(Index(0), num_links, out);
+  return false;
 }
 
 }  // namespace fsm::detail

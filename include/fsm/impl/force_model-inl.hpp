@@ -870,38 +870,24 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
     // The links' 3 x 3 diagonal blocks per node with the mass (the drag's Jacobian -gamma m I
     // joins it: M (1 + h gamma)), kept for implicit_diagonal_blocks(); diag(A) from them. On the
     // pool each thread sums its links' blocks into its own buffer, then its share of the nodes.
-    detail::WorkerPool* pool = m_pool.get();
-    const int T = pool ? std::min<int>({pool->size(), static_cast<int>(m_scratch.size()),
-                                        static_cast<int>(m_block_scratch.size())})
-                       : 1;
+    // (m_block_scratch has as many buffers as m_scratch: resize_scratch().)
     const Index n = model.num_nodes();
     auto copy_diagonal = [&](Index begin, Index end) {
       Scalar* d = diagonal.data();
       for (std::ptrdiff_t i = begin; i < end; ++i)
         for (std::ptrdiff_t c = 0; c < 3; ++c) d[3 * i + c] = m_link_node_blocks[6 * i + c];
     };
-    if (T > 1) {
-      auto links = [&](int t, int) {
-        if (t >= T) return;
-        std::vector<Scalar>& buf = m_scratch[std::size_t(t)];
-        std::vector<Scalar>& bb = m_block_scratch[std::size_t(t)];
-        std::fill(buf.begin(), buf.end(), Scalar(0));
-        std::fill(bb.begin(), bb.end(), Scalar(0));
-        const auto [begin, end] = detail::share(model.num_links(), t, T);
-        kernel(begin, end, buf.data());
-        add_link_node_blocks(model, blocks, begin, end, bb.data());
-      };
-      pool->run(links);
-      auto nodes = [&](int t, int) {
-        if (t >= T) return;
-        const auto [begin, end] = detail::share(n, t, T);
-        detail::sum_buffers(begin, end, rhs.data(), m_scratch, T, init);
-        init_link_node_blocks(model, h, begin, end, T);
-        copy_diagonal(begin, end);
-      };
-      pool->run(nodes);
-    } else {
-      detail::scatter_links(pool, n, model.num_links(), rhs.data(), m_scratch, init, kernel);
+    auto links_done = [&](int t, Index begin, Index end) {
+      std::vector<Scalar>& bb = m_block_scratch[std::size_t(t)];
+      std::fill(bb.begin(), bb.end(), Scalar(0));
+      add_link_node_blocks(model, blocks, begin, end, bb.data());
+    };
+    auto nodes_done = [&](Index begin, Index end, int T) {
+      init_link_node_blocks(model, h, begin, end, T);
+      copy_diagonal(begin, end);
+    };
+    if (!detail::scatter_links(m_pool.get(), n, model.num_links(), rhs.data(), m_scratch, init,
+                               kernel, links_done, nodes_done)) {
       init_link_node_blocks(model, h, 0, n, 0);
       add_link_node_blocks(model, blocks, 0, model.num_links(), m_link_node_blocks.data());
       copy_diagonal(0, n);
