@@ -33,12 +33,14 @@ import time
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import axisym  # noqa: E402
 import fem  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REF_DIR = os.path.join(HERE, "reference")
 E_NEO = 13150.0  # Pa: the paper's small-strain modulus as the neo-Hookean reference's E
-CASES = ["compression", "compression_graded", "punch", "sphere", "cylinder", "rounded_cylinder"]
+CASES = ["compression", "compression_graded", "punch", "sphere", "cylinder", "rounded_cylinder",
+         "disc_rounded_cylinder", "disc_cylinder", "disc_sphere"]
 # Bonded, displacement-driven cases (fem.write_inp); "compression_graded" is the compression on a
 # mesh family graded toward its singular edges (fem.edge_graded).
 BONDED = ("compression", "compression_graded", "punch")
@@ -47,6 +49,8 @@ NS = [5, 10, 15, 20]  # elements per 10 mm (quarter model): 2, 1, 0.67, 0.5 mm (
 # The contact runs cost about 4x a bonded run of the same mesh (8-10 Newton iterations per
 # increment); their family is n = 5, 7, 10 (graded, see fem.block_mesh) within the time budget.
 NS_CONTACT = [5, 7, 10]
+# The cylindrical specimen's axisymmetric section (validation/axisym.py): n x n CAX8 elements.
+NS_DISC = [10, 15, 20, 25]
 LEGACY_N = 10  # compression/punch with n <= LEGACY_N: 30 increments (the validation's curves)
 FS = 1.25  # safety factor of the grid convergence index (three meshes, Roache)
 P_RANGE = (0.5, 3.0)  # plausible observed orders; outside: clipped and flagged
@@ -105,8 +109,9 @@ def run_one(a, case, nu, n):
         # stored beside the curve (increments_path) and its spread enters the uncertainty.
         k1 = a.contact_increments
         runs_k = []
+        runner = axisym.run_contact if case in axisym.CASES else fem.run_contact
         for k in (k1, 2 * k1):
-            d, F, p, _ = fem.run_contact(a.work, case, n, E_NEO, nu, samples=incs, solver=solver,
+            d, F, p, _ = runner(a.work, case, n, E_NEO, nu, samples=incs, solver=solver,
                                          penalty=a.penalty, ccx=a.ccx, refine=(k,))
             runs_k.append((d, F, p))
         (d, F1, p1), (_, F2, p2) = runs_k
@@ -121,8 +126,9 @@ def run_one(a, case, nu, n):
         pen = float(max(np.max(p1), np.max(p2)))
         pen_rel = float(np.max(np.maximum(p1, p2)[1:] / d[1:]))
     else:
-        d, F, p, k = fem.run_contact(a.work, case, n, E_NEO, nu, samples=incs, solver=solver,
-                                     penalty=a.penalty, ccx=a.ccx)
+        runner = axisym.run_contact if case in axisym.CASES else fem.run_contact
+        d, F, p, k = runner(a.work, case, n, E_NEO, nu, samples=incs, solver=solver,
+                            penalty=a.penalty, ccx=a.ccx)
         incs *= k
         pen = float(np.max(p))
         pen_rel = float(np.max(p[1:] / d[1:]))
@@ -217,15 +223,15 @@ def analyse(a, runs):
     summary, conv_rows = {}, []
     for case in CASES:
         for nu in NUS:
-            full = [n for n in range(2, 61) if os.path.exists(curve_path(case, nu, n))]
+            full = [n for n in range(2, 161) if os.path.exists(curve_path(case, nu, n))]
             for n in full:
                 d, F = read_curve(curve_path(case, nu, n))
                 r = runs.get(run_key(case, nu, n), {})
-                conv_rows.append([case, nu, n, n ** 3, 10.0 / n, np.interp(1.25, d, F),
+                conv_rows.append([case, nu, n, n ** 2 if case in axisym.CASES else n ** 3, 10.0 / n, np.interp(1.25, d, F),
                                   np.interp(2.5, d, F), r.get("seconds"), r.get("increments"),
                                   r.get("max_penetration_mm")])
             # A run that stopped early (<case>_nu<nu>_n<n>_partial.csv) counts where it has samples.
-            part = [n for n in range(2, 61) if n not in full
+            part = [n for n in range(2, 161) if n not in full
                     and os.path.exists(partial_path(case, nu, n))]
             ns = sorted(full + part)
             if len(ns) < 3:
@@ -361,14 +367,16 @@ def main():
     os.makedirs(REF_DIR, exist_ok=True)
     cases = a.cases.split(",")
     nus = [float(x) for x in a.nus.split(",")]
-    ns_all = [int(x) for x in a.ns.split(",")] if a.ns else sorted(set(NS) | set(NS_CONTACT))
+    ns_all = [int(x) for x in a.ns.split(",")] if a.ns else sorted(set(NS) | set(NS_CONTACT) | set(NS_DISC))
     runs = load_runs()
     t_start = time.time()
     if not a.analyse:
         for n in ns_all:  # coarse meshes of every case first: a budget cut loses the finest
             for nu in nus:
                 for case in cases:
-                    if not a.ns and n not in (NS if case in BONDED else NS_CONTACT):
+                    family = (NS if case in BONDED else NS_DISC if case in axisym.CASES
+                              else NS_CONTACT)
+                    if not a.ns and n not in family:
                         continue
                     if a.reuse and (os.path.exists(curve_path(case, nu, n)) or
                                     (a.keep_partial and os.path.exists(partial_path(case, nu, n)))):

@@ -1,6 +1,8 @@
-"""Box mesh and scene files for the indentation experiment (the builder's input)."""
+"""Box and cylindrical-specimen meshes and scene files for the indentation experiment (the
+builder's input)."""
 
 import json
+import math
 import os
 
 W, H = 20.0, 10.0  # mm
@@ -44,6 +46,32 @@ def write_box_off(path, divisions=4):
                         q = q[::-1]
                     faces.append((q[0], q[1], q[2]))
                     faces.append((q[0], q[2], q[3]))
+    with open(path, "w") as f:
+        f.write(f"OFF\n{len(verts)} {len(faces)} 0\n")
+        for p in verts:
+            f.write(f"{p[0]:.9g} {p[1]:.9g} {p[2]:.9g}\n")
+        for t in faces:
+            f.write(f"3 {t[0]} {t[1]} {t[2]}\n")
+
+
+def write_disc_off(path, radius=10.0, segments=128):
+    """The cylindrical specimen of validation/axisym.py: a closed, outward-oriented triangulated
+    cylinder of `radius` (mm) and height H, its axis vertical through the box's centre (W/2, W/2),
+    bottom at z = 0. A `segments`-gon prism: its volume is within (2 pi/segments)^2/6 (0.04 % at
+    128) of the cylinder's; the rims are its only sharp edges (the side's facets meet at
+    360/segments degrees), so the builder protects exactly them."""
+    c = W / 2
+    ring = [(c + radius * math.cos(2 * math.pi * k / segments),
+             c + radius * math.sin(2 * math.pi * k / segments)) for k in range(segments)]
+    verts = [(c, c, 0.0), (c, c, H)] + [(x, y, 0.0) for x, y in ring] + [(x, y, H) for x, y in ring]
+    faces = []
+    for k in range(segments):
+        k1 = (k + 1) % segments
+        b0, b1, t0, t1 = 2 + k, 2 + k1, 2 + segments + k, 2 + segments + k1
+        faces.append((0, b1, b0))  # bottom, facing -z
+        faces.append((1, t0, t1))  # top, facing +z
+        faces.append((b0, b1, t1))  # side, facing outward
+        faces.append((b0, t1, t0))
     with open(path, "w") as f:
         f.write(f"OFF\n{len(verts)} {len(faces)} 0\n")
         for p in verts:
