@@ -254,3 +254,29 @@ def run_contact(workdir, case, n, E_pa, nu, depth=fem.DEPTH, samples=10, ccx="/u
     d = np.concatenate([[0.0], t * depth])
     F = np.concatenate([[0.0], -WEDGE * fy])
     return d, F, np.array(pen), k
+
+
+def check_wedge(workdir, ccx="/usr/bin/ccx"):
+    """The force scale of ccx's axisymmetric elements: one CAX8 disc (R = H = 10 mm, linear
+    elastic E = 1000 MPa) compressed 0.1 % between frictionless platens is in uniaxial stress, so
+    the whole disc's reaction is E pi R^2 eps; returns (WEDGE x ccx's total, that force)."""
+    os.makedirs(workdir, exist_ok=True)
+    with open(os.path.join(workdir, "wedge_check.inp"), "w") as f:
+        f.write("*NODE, NSET=NALL\n1, 0, 0\n2, 5, 0\n3, 10, 0\n4, 0, 5\n5, 10, 5\n6, 0, 10\n"
+                "7, 5, 10\n8, 10, 10\n*ELEMENT, TYPE=CAX8, ELSET=EALL\n1, 1, 3, 8, 6, 2, 5, 7, 4\n"
+                "*NSET, NSET=BOT\n1, 2, 3\n*NSET, NSET=IND\n6, 7, 8\n*NSET, NSET=AXIS\n1, 4, 6\n"
+                "*MATERIAL, NAME=M\n*ELASTIC\n1000., 0.3\n*SOLID SECTION, ELSET=EALL, MATERIAL=M\n"
+                "*STEP\n*STATIC\n*BOUNDARY\nBOT, 2, 2, 0.\nAXIS, 1, 1, 0.\nIND, 2, 2, -0.01\n"
+                "*NODE PRINT, NSET=IND, TOTALS=ONLY\nRF\n*END STEP\n")
+    r = fem.run_ccx(workdir, "wedge_check", ccx)
+    if r.returncode != 0:
+        raise RuntimeError("ccx failed on the wedge check:\n" + r.stdout[-1500:])
+    _, fy = axial_reaction(os.path.join(workdir, "wedge_check.dat"))
+    return -WEDGE * float(fy[-1]), 1000.0 * np.pi * RB ** 2 * 1e-3
+
+
+if __name__ == "__main__":
+    import sys
+    got, want = check_wedge(sys.argv[1] if len(sys.argv) > 1 else "/tmp/fsm-axisym-check")
+    print(f"CAX8 disc in uniaxial compression: {got:.6g} N from ccx x {WEDGE:g}, exact {want:.6g} N")
+    sys.exit(0 if abs(got / want - 1) < 1e-5 else 1)
