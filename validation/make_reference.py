@@ -9,7 +9,9 @@ convergence study (Richardson extrapolation). See validation/reference/README.md
 Load cases: "compression" and "punch" (bonded, displacement-driven tools, fem.write_inp) and
 "sphere" (R 5 mm), "cylinder" (flat end, R 3 mm, sharp rim) and "rounded_cylinder" (the same
 with the rim rounded to 1 mm), rigid frictionless indenters through surface-to-surface penalty
-contact (fem.write_contact_inp). For each case, Poisson ratio and mesh:
+contact (fem.write_contact_inp), and the same three indenters on a cylindrical specimen,
+axisymmetric ("disc_sphere", "disc_cylinder", "disc_rounded_cylinder": axisym.write_inp). For
+each case, Poisson ratio and mesh:
 - reference/<case>_nu<nu>_n<n>.csv: displacement_mm, force_N at every increment (0 included);
   compression/punch with n <= 10 use 30 increments (31 samples, 1 Hz at 5 mm/min, the format the
   validation reads), the other runs --increments (default 10: 0.25 mm steps; the converged
@@ -112,7 +114,7 @@ def run_one(a, case, nu, n):
         runner = axisym.run_contact if case in axisym.CASES else fem.run_contact
         for k in (k1, 2 * k1):
             d, F, p, _ = runner(a.work, case, n, E_NEO, nu, samples=incs, solver=solver,
-                                         penalty=a.penalty, ccx=a.ccx, refine=(k,))
+                                penalty=a.penalty, ccx=a.ccx, refine=(k,))
             runs_k.append((d, F, p))
         (d, F1, p1), (_, F2, p2) = runs_k
         F = 2 * F2 - F1
@@ -227,7 +229,8 @@ def analyse(a, runs):
             for n in full:
                 d, F = read_curve(curve_path(case, nu, n))
                 r = runs.get(run_key(case, nu, n), {})
-                conv_rows.append([case, nu, n, n ** 2 if case in axisym.CASES else n ** 3, 10.0 / n, np.interp(1.25, d, F),
+                elements = n ** 2 if case in axisym.CASES else n ** 3  # a section or a quarter
+                conv_rows.append([case, nu, n, elements, 10.0 / n, np.interp(1.25, d, F),
                                   np.interp(2.5, d, F), r.get("seconds"), r.get("increments"),
                                   r.get("max_penetration_mm")])
             # A run that stopped early (<case>_nu<nu>_n<n>_partial.csv) counts where it has samples.
@@ -343,7 +346,7 @@ def main():
     ap.add_argument("--cases", default=",".join(CASES))
     ap.add_argument("--nus", default=",".join(f"{x:g}" for x in NUS))
     ap.add_argument("--ns", default=None, help="meshes (default: 5,10,15,20 for compression "
-                    "and punch, 5,7,10 for the contact cases)")
+                    "and punch, 5,7,10 for the contact cases, 10,15,20,25 for the disc cases)")
     ap.add_argument("--increments", type=int, default=10,
                     help="fixed increments of the runs other than compression/punch n <= 10")
     ap.add_argument("--solver", choices=["spooles", "iterative"], default="spooles")
@@ -367,7 +370,8 @@ def main():
     os.makedirs(REF_DIR, exist_ok=True)
     cases = a.cases.split(",")
     nus = [float(x) for x in a.nus.split(",")]
-    ns_all = [int(x) for x in a.ns.split(",")] if a.ns else sorted(set(NS) | set(NS_CONTACT) | set(NS_DISC))
+    ns_all = ([int(x) for x in a.ns.split(",")] if a.ns
+              else sorted(set(NS) | set(NS_CONTACT) | set(NS_DISC)))
     runs = load_runs()
     t_start = time.time()
     if not a.analyse:
