@@ -15,7 +15,6 @@ specimen's closed surface, fsm-indent presses the same indenter into its top's c
 """
 
 import os
-import re
 
 import numpy as np
 
@@ -220,17 +219,6 @@ def penetration(case, coords, u, d, r_min=0.0):
     return worst
 
 
-def axial_reaction(path):
-    """(time, total reaction force along the axis, y) per increment of the set IND."""
-    times, fy = [], []
-    text = open(path).read()
-    for mm in re.finditer(r"total force \(fx,fy,fz\) for set IND and time\s+([-+0-9.Ee]+)\s*\n\s*"
-                          r"([-+0-9.Ee]+)\s+([-+0-9.Ee]+)\s+([-+0-9.Ee]+)", text):
-        times.append(float(mm.group(1)))
-        fy.append(float(mm.group(3)))
-    return np.array(times), np.array(fy)
-
-
 def run_contact(workdir, case, n, E_pa, nu, depth=fem.DEPTH, samples=10, ccx="/usr/bin/ccx",
                 threads=1, refine=(1, 2), **kw):
     """Runs one axisymmetric reference; returns (displacement mm, force N of the whole specimen,
@@ -243,7 +231,7 @@ def run_contact(workdir, case, n, E_pa, nu, depth=fem.DEPTH, samples=10, ccx="/u
         coords, _ = write_inp(inp, case, n, E_pa, nu, depth, samples * k, **kw)
         r = fem.run_ccx(workdir, job, ccx, threads)
         dat = os.path.join(workdir, job + ".dat")
-        t, fy = axial_reaction(dat)
+        t, fy = fem.parse_dat_set(dat, "IND", axis=1)  # the axis is y
         if r.returncode == 0 and len(t) == samples * k and abs(t[-1] - 1.0) < 1e-6:
             break
         errors.append(f"{samples * k} increments: rc {r.returncode}, {len(t)} done\n" + r.stdout[-1500:])
@@ -273,7 +261,7 @@ def check_wedge(workdir, ccx="/usr/bin/ccx"):
     r = fem.run_ccx(workdir, "wedge_check", ccx)
     if r.returncode != 0:
         raise RuntimeError("ccx failed on the wedge check:\n" + r.stdout[-1500:])
-    _, fy = axial_reaction(os.path.join(workdir, "wedge_check.dat"))
+    _, fy = fem.parse_dat_set(os.path.join(workdir, "wedge_check.dat"), "IND", axis=1)
     return -WEDGE * float(fy[-1]), 1000.0 * np.pi * RB ** 2 * 1e-3
 
 

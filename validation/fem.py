@@ -203,14 +203,8 @@ def step_cards(samples, solver=None):
 
 
 def parse_dat(path):
-    """(time, total reaction force in z) per increment from a .dat with TOTALS=ONLY."""
-    times, fz = [], []
-    text = open(path).read()
-    for m in re.finditer(r"total force \(fx,fy,fz\) for set TOP and time\s+([-+0-9.Ee]+)\s*\n\s*"
-                         r"([-+0-9.Ee]+)\s+([-+0-9.Ee]+)\s+([-+0-9.Ee]+)", text):
-        times.append(float(m.group(1)))
-        fz.append(float(m.group(4)))
-    return np.array(times), np.array(fz)
+    """(time, total reaction force in z) per increment from a .dat with TOTALS=ONLY (set TOP)."""
+    return parse_dat_set(path, "TOP")
 
 
 def run(workdir, case, n, E_pa, nu, depth=DEPTH, samples=SAMPLES, ccx="/usr/bin/ccx", threads=1,
@@ -490,15 +484,16 @@ def write_contact_inp(path, case, n, E_pa, nu, depth=DEPTH, samples=10, beta=GRA
     return nn, len(elems), coords, top_all
 
 
-def parse_dat_set(path, nset):
-    """(time, total reaction force in z) per increment for the node set `nset` (TOTALS=ONLY)."""
-    times, fz = [], []
+def parse_dat_set(path, nset, axis=2):
+    """(time, total reaction force along `axis`: 0 x, 1 y, 2 z) per increment for the node set
+    `nset` (TOTALS=ONLY)."""
+    times, f = [], []
     text = open(path).read()
     for mm in re.finditer(r"total force \(fx,fy,fz\) for set " + nset + r" and time\s+([-+0-9.Ee]+)\s*\n\s*"
                           r"([-+0-9.Ee]+)\s+([-+0-9.Ee]+)\s+([-+0-9.Ee]+)", text):
         times.append(float(mm.group(1)))
-        fz.append(float(mm.group(4)))
-    return np.array(times), np.array(fz)
+        f.append(float(mm.group(2 + axis)))
+    return np.array(times), np.array(f)
 
 
 def parse_dat_u(path, nset):

@@ -46,12 +46,7 @@ def write_box_off(path, divisions=4):
                         q = q[::-1]
                     faces.append((q[0], q[1], q[2]))
                     faces.append((q[0], q[2], q[3]))
-    with open(path, "w") as f:
-        f.write(f"OFF\n{len(verts)} {len(faces)} 0\n")
-        for p in verts:
-            f.write(f"{p[0]:.9g} {p[1]:.9g} {p[2]:.9g}\n")
-        for t in faces:
-            f.write(f"3 {t[0]} {t[1]} {t[2]}\n")
+    write_off(path, verts, faces)
 
 
 def write_disc_off(path, radius=10.0, segments=128):
@@ -72,6 +67,11 @@ def write_disc_off(path, radius=10.0, segments=128):
         faces.append((1, t0, t1))  # top, facing +z
         faces.append((b0, b1, t1))  # side, facing outward
         faces.append((b0, t1, t0))
+    write_off(path, verts, faces)
+
+
+def write_off(path, verts, faces):
+    """A triangle mesh as OFF: vertices (mm) and 0-based triangles."""
     with open(path, "w") as f:
         f.write(f"OFF\n{len(verts)} {len(faces)} 0\n")
         for p in verts:
