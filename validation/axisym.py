@@ -22,12 +22,13 @@ import fem
 
 RB = 10.0  # mm: the specimen's radius
 H = fem.H  # mm: its height
-CASES = ("disc_sphere", "disc_cylinder", "disc_rounded_cylinder")
+CASES = ("disc_rounded_cylinder", "disc_cylinder", "disc_sphere")
 # ccx reports the forces of axisymmetric elements for their 2-degree wedge (checked: a CAX8 disc
-# in frictionless uniaxial compression gives E pi R^2 eps / 180).
+# in frictionless uniaxial compression gives E pi R^2 eps / 180; check_wedge()).
 WEDGE = 180.0
-# Indenter profile cells (the same on every mesh: its faceting error must not change with n).
-PROFILE_CELLS = {"disc_sphere": 96, "disc_cylinder": 96, "disc_rounded_cylinder": 96}
+# Cells along every indenter's profile (the same on every mesh: its faceting error must not
+# change with n).
+PROFILE_CELLS = 96
 # ccx's contact formulation (write_inp's `contact`). NODE TO SURFACE was tried on n = 30 and
 # failed as well (reference/README.md).
 CONTACT = "SURFACE TO SURFACE"
@@ -35,8 +36,9 @@ PENALTY = {"disc_sphere": 50.0, "disc_cylinder": 10.0, "disc_rounded_cylinder": 
 
 
 def indenter_case(case):
-    """fem.py's / fsm-indent's name of a disc case's indenter ("disc_sphere" -> "sphere")."""
-    return case[len("disc_"):]
+    """fem.py's and fsm-indent's name of a case's indenter ("disc_sphere" -> "sphere"; a box case
+    is its own)."""
+    return case[len("disc_"):] if case.startswith("disc_") else case
 
 
 def section_mesh(n, beta=fem.GRADING):
@@ -81,25 +83,14 @@ def profile(case, m, thickness=0.5):
         R, tmax = fem.SPHERE_R, np.radians(80.0)
         s_total = tmax
 
-        def at(s):
-            t = s
+        def at(t):  # t: the polar angle
             return ((R * np.sin(t), H + R - R * np.cos(t)),
                     ((R - thickness) * np.sin(t), H + R - (R - thickness) * np.cos(t)))
     elif ind == "rounded_cylinder":
-        R, e = fem.CYLINDER_R, fem.EDGE_R
-        flat, arc = R - e, 0.5 * np.pi * e
-        s_total = flat + arc + fem.WALL_H
+        s_total = fem.ROUNDED_PROFILE_LENGTH
 
         def at(s):
-            if s <= flat:
-                return (s, H), (s, H + thickness)
-            if s <= flat + arc:
-                a = (s - flat) / e
-                c = (flat, H + e)
-                return ((c[0] + e * np.sin(a), c[1] - e * np.cos(a)),
-                        (c[0] + (e - thickness) * np.sin(a), c[1] - (e - thickness) * np.cos(a)))
-            z = H + e + (s - flat - arc)
-            return (R, z), (R - thickness, z)
+            return fem.rounded_profile(s, thickness)
     elif ind == "cylinder":
         R, wall = fem.CYLINDER_R, 2.0
         s_total = R + wall
@@ -112,10 +103,11 @@ def profile(case, m, thickness=0.5):
     else:
         raise ValueError(case)
     if ind == "cylinder":
-        # as many cells on the end as on 3 mm of the rounded profile's: half the cells per mm
-        # near the corner would be no finer than the block's elements there
+        # a node exactly at the sharp corner (s = R), the cells shared between the end and the
+        # wall in proportion to their lengths
         n_end = int(round(m * R / s_total))
-        s = np.concatenate([np.linspace(0, R, n_end + 1), np.linspace(R, s_total, m - n_end + 1)[1:]])
+        s = np.concatenate([np.linspace(0, R, n_end + 1),
+                            np.linspace(R, s_total, m - n_end + 1)[1:]])
     else:
         s = np.linspace(0, s_total, m + 1)
     mids = 0.5 * (s[1:] + s[:-1])
@@ -129,7 +121,7 @@ def write_inp(path, case, n, E_pa, nu, depth=fem.DEPTH, samples=10, beta=fem.GRA
     penalty contact; bottom bonded, the axis held radially. Outputs: RF totals on the indenter
     (set IND), U on the top's nodes (set TOPALL)."""
     ids, coords, elems, top = section_mesh(n, beta)
-    m = m or PROFILE_CELLS[case]
+    m = m or PROFILE_CELLS
     penalty = penalty or PENALTY[case]
     pts, mids = profile(case, m)
     nn = len(coords)
@@ -151,7 +143,8 @@ def write_inp(path, case, n, E_pa, nu, depth=fem.DEPTH, samples=10, beta=fem.GRA
                 node(("s", a + 1), tuple(0.5 * (np.array(p1) + np.array(q1)))),
                 node(("qm", a), qm), node(("s", a), tuple(0.5 * (np.array(p0) + np.array(q0))))]
         P = [np.array(ind_coords[v]) for v in conn[:4]]
-        area = 0.5 * sum(P[i][0] * P[(i + 1) % 4][1] - P[(i + 1) % 4][0] * P[i][1] for i in range(4))
+        area = 0.5 * sum(P[i][0] * P[(i + 1) % 4][1] - P[(i + 1) % 4][0] * P[i][1]
+                         for i in range(4))
         if area <= 0:
             raise ValueError(f"indenter cell {a} is not counter-clockwise ({area})")
         ind_elems.append(conn)
@@ -196,27 +189,13 @@ def write_inp(path, case, n, E_pa, nu, depth=fem.DEPTH, samples=10, beta=fem.GRA
 
 def penetration(case, coords, u, d, r_min=0.0):
     """Largest penetration (mm) of the specimen's top nodes (deformed) into the indenter moved down
-    by d (as fem.penetration, in the section: r = x, z = y), over the nodes at r >= r_min at rest.
+    by d (fem.depth_inside, in the section: r = x, z = y), over the nodes at r >= r_min at rest.
     run_contact leaves out the element on the axis: its top face has no area at r = 0, so the
     contact holds it only weakly and it sinks into the indenter (65-300 um at 2.5 mm, halving with
     each halving of the mesh); the force it leaves out converges away with the mesh."""
     ind = indenter_case(case)
-    worst = 0.0
-    for v, disp in u.items():
-        r0, z0 = coords[v]
-        if r0 < r_min:
-            continue
-        r, z = r0 + disp[0], z0 + disp[1]
-        if ind == "sphere":
-            pen = fem.SPHERE_R - np.hypot(r, z - (H + fem.SPHERE_R - d))
-        elif ind == "rounded_cylinder":
-            qx = r - (fem.CYLINDER_R - fem.EDGE_R)
-            qz = (H - d + fem.EDGE_R) - z
-            pen = -(np.hypot(max(qx, 0.0), max(qz, 0.0)) + min(max(qx, qz), 0.0) - fem.EDGE_R)
-        else:
-            pen = z - (H - d) if r <= fem.CYLINDER_R else 0.0
-        worst = max(worst, pen)
-    return worst
+    return max([0.0] + [fem.depth_inside(ind, coords[v][0] + disp[0], coords[v][1] + disp[1], d)
+                        for v, disp in u.items() if coords[v][0] >= r_min])
 
 
 def run_contact(workdir, case, n, E_pa, nu, depth=fem.DEPTH, samples=10, ccx="/usr/bin/ccx",
@@ -234,7 +213,8 @@ def run_contact(workdir, case, n, E_pa, nu, depth=fem.DEPTH, samples=10, ccx="/u
         t, fy = fem.parse_dat_set(dat, "IND", axis=1)  # the axis is y
         if r.returncode == 0 and len(t) == samples * k and abs(t[-1] - 1.0) < 1e-6:
             break
-        errors.append(f"{samples * k} increments: rc {r.returncode}, {len(t)} done\n" + r.stdout[-1500:])
+        errors.append(f"{samples * k} increments: rc {r.returncode}, {len(t)} done\n"
+                      + r.stdout[-1500:])
     else:
         raise RuntimeError(f"ccx failed on {job}:\n" + "\n".join(errors))
     us = fem.parse_dat_u(dat, "TOPALL")
@@ -268,5 +248,6 @@ def check_wedge(workdir, ccx="/usr/bin/ccx"):
 if __name__ == "__main__":
     import sys
     got, want = check_wedge(sys.argv[1] if len(sys.argv) > 1 else "/tmp/fsm-axisym-check")
-    print(f"CAX8 disc in uniaxial compression: {got:.6g} N from ccx x {WEDGE:g}, exact {want:.6g} N")
+    print(f"CAX8 disc in uniaxial compression: {got:.6g} N from ccx x {WEDGE:g}, "
+          f"exact {want:.6g} N")
     sys.exit(0 if abs(got / want - 1) < 1e-5 else 1)

@@ -40,6 +40,7 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
+import axisym  # noqa: E402
 import fem  # noqa: E402
 import scenes  # noqa: E402
 import validate  # noqa: E402
@@ -49,11 +50,10 @@ BOX_STUDIES = [("compression", 0.49), ("compression", 0.45), ("punch", 0.49), ("
                ("sphere", 0.49), ("sphere", 0.45)]
 # The indenters on the cylindrical specimen (validation/axisym.py: its axisymmetric reference
 # converges for the flat-ended cylinders too).
-DISC_STUDIES = [(c, nu) for c in ("disc_rounded_cylinder", "disc_cylinder", "disc_sphere")
-                for nu in (0.49, 0.45)]
+DISC_STUDIES = [(c, nu) for c in axisym.CASES for nu in (0.49, 0.45)]
 STUDIES = BOX_STUDIES + [("rounded_cylinder", 0.49), ("rounded_cylinder", 0.45)] + DISC_STUDIES
 # Smooth indenters through contact: scored also by the largest force error from 0.5 to 2.5 mm.
-CONTACT = ("sphere", "rounded_cylinder") + tuple(c for c, _ in DISC_STUDIES[::2])
+CONTACT = ("sphere", "rounded_cylinder") + axisym.CASES
 # The laws run per case: the ball also with the face contact (fsm-indent --contact faces); the
 # continuum law also with smoothed deviatoric strains ("continuum/node": fsm-indent --smoothing
 # node, ForceModel::Options::strain_smoothing, default element share).
@@ -61,12 +61,7 @@ SMOOTHED = ("continuum/face", "continuum/node")
 LAWS = {"compression": ("links", "continuum") + SMOOTHED, "punch": ("links", "continuum") + SMOOTHED,
         "sphere": ("links", "continuum", "continuum+faces") + SMOOTHED,
         "rounded_cylinder": ("links", "continuum", "continuum+faces") + SMOOTHED}
-LAWS.update({c: ("links", "continuum", "continuum+faces") + SMOOTHED for c, _ in DISC_STUDIES})
-
-
-def indent_case(case):
-    """fsm-indent's --case of a study ("disc_rounded_cylinder" -> "rounded_cylinder")."""
-    return case[len("disc_"):] if case.startswith("disc_") else case
+LAWS.update({c: ("links", "continuum", "continuum+faces") + SMOOTHED for c in axisym.CASES})
 
 
 def indent_flags(law):
@@ -85,7 +80,7 @@ def indent_run(a, scene, case, law, nu, r):
         f"_nu{nu:g}" if law != "links" else "")
     curve, summary = (os.path.join(a.work, tag + x) for x in (".csv", ".json"))
     if not (a.reuse and os.path.exists(curve) and os.path.exists(summary)):
-        p = subprocess.run([a.indent, scene, "--case", indent_case(case), *indent_flags(law),
+        p = subprocess.run([a.indent, scene, "--case", axisym.indenter_case(case), *indent_flags(law),
                             "--nu", str(nu),
                             "--speed", "150", "--out", curve], capture_output=True, text=True)
         if p.returncode not in (0, 3):
@@ -112,11 +107,9 @@ def parse_studies(text):
 def score(d, F, case, nu):
     dr, Fr = validate.converged_reference(case, nu)
     m = validate.metrics(d, F, dr, Fr)
-    mask = (d >= 0.5 - 1e-9) & (d <= 2.5 + 1e-9)
-    ref = validate.interp_power(d[mask], dr, Fr)
-    rel = np.max(np.abs(F[mask] - ref) / ref)
     out = {"max_disp_diff_mm": m["max_disp_diff_mm"], "rms_force_N": m["rms_force_N"],
-           "covered": m["covered"], "max_rel_force_error_0p5_2p5": float(rel),
+           "covered": m["covered"],
+           "max_rel_force_error_0p5_2p5": validate.max_force_error(d, F, dr, Fr),
            "force_1p25_N": float(np.interp(1.25, d, F)), "force_2p5_N": float(F[-1]),
            "reference_1p25_N": float(np.interp(1.25, dr, Fr)),
            "reference_2p5_N": float(Fr[-1])}
@@ -462,7 +455,7 @@ def charts(rows):
     disc = [x for x in ok if x["case"].startswith("disc_")]
     if disc:
         fig, axes = plt.subplots(2, 3, figsize=(13, 8))
-        for col, case in enumerate(("disc_rounded_cylinder", "disc_cylinder", "disc_sphere")):
+        for col, case in enumerate(axisym.CASES):
             for row, nu in enumerate((0.49, 0.45)):
                 ax = axes[row][col]
                 for law, (style, colour, name) in STYLE.items():

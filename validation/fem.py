@@ -267,6 +267,26 @@ PENALTY = {"sphere": 50.0, "cylinder": 10.0, "rounded_cylinder": 25.0}
 INDENTER_CELLS = {"sphere": 32, "cylinder": 16, "rounded_cylinder": 48}
 
 
+# The rounded cylinder's profile from its axis outward: the flat end, the rim, WALL_H of wall.
+ROUNDED_PROFILE_LENGTH = (CYLINDER_R - EDGE_R) + 0.5 * np.pi * EDGE_R + WALL_H
+
+
+def rounded_profile(s, thickness):
+    """The rounded cylinder at rest (its end on z = H, its axis at r = 0): the (r, z) of its
+    surface at profile length s from the axis, and of the point `thickness` inside it."""
+    R, e = CYLINDER_R, EDGE_R
+    flat, arc = R - e, 0.5 * np.pi * e
+    if s <= flat:
+        return (s, H), (s, H + thickness)
+    if s <= flat + arc:
+        a = (s - flat) / e  # angle from the downward normal
+        c = (flat, H + e)  # the rim's centre
+        return ((c[0] + e * np.sin(a), c[1] - e * np.cos(a)),
+                (c[0] + (e - thickness) * np.sin(a), c[1] - (e - thickness) * np.cos(a)))
+    z = H + e + (s - flat - arc)
+    return (R, z), (R - thickness, z)
+
+
 def graded(s, beta=GRADING):
     """Maps the uniform parameter s in [0, 1] to [0, 1] with elements (1 - beta) times the mean
     size at s = 0 and (1 + beta) times at s = 1 (quadratic map: sizes grow linearly). The same
@@ -345,29 +365,14 @@ def indenter_mesh(case, m, first_node, first_elem, thickness=0.5, wall=False):
                 pts.append((out, inn))
         cells = [((a, b), (a + 1, b), (a + 1, b + 1), (a, b + 1)) for b in range(m) for a in range(m)]
     elif case == "rounded_cylinder":
-        R, e = CYLINDER_R, EDGE_R
-        flat, arc = R - e, 0.5 * np.pi * e
-        total = flat + arc + WALL_H
-
-        def profile(s):
-            """(r, z) of the surface and of the point `thickness` inside, at profile length s."""
-            if s <= flat:
-                return (s, H), (s, H + thickness)
-            if s <= flat + arc:
-                a = (s - flat) / e  # angle from the downward normal
-                c = (flat, H + e)  # the rim's centre
-                return ((c[0] + e * np.sin(a), c[1] - e * np.cos(a)),
-                        (c[0] + (e - thickness) * np.sin(a), c[1] - (e - thickness) * np.cos(a)))
-            z = H + e + (s - flat - arc)
-            return (R, z), (R - thickness, z)
-
+        total = ROUNDED_PROFILE_LENGTH
         grid = {}
         for b in range(m + 1):
             for a in range(m + 1):
                 X, Y = _disc(a / m, b / m)
                 rho = np.hypot(X, Y)
                 dx, dy = (X / rho, Y / rho) if rho > 0 else (0.0, 0.0)
-                (ro, zo), (ri, zi) = profile(rho * total)
+                (ro, zo), (ri, zi) = rounded_profile(rho * total, thickness)
                 grid[(a, b)] = len(pts)
                 pts.append(((W / 2 + ro * dx, W / 2 + ro * dy, zo), (W / 2 + ri * dx, W / 2 + ri * dy, zi)))
         cells = [((a, b), (a + 1, b), (a + 1, b + 1), (a, b + 1)) for b in range(m) for a in range(m)]
@@ -520,25 +525,29 @@ def parse_dat_u(path, nset):
     return out
 
 
+def depth_inside(case, r, z, d):
+    """How deep (mm; negative outside) a point at distance r from the indenter's axis and height z
+    lies inside the indenter moved down by d from touching z = H: sphere, R - |p - c|; cylinder,
+    z - (H - d) where r <= R; rounded_cylinder, minus the signed distance to its profile (a
+    rectangle with corners rounded to EDGE_R). The box's and the cylindrical specimen's
+    references (axisym.py) both measure penetration with it."""
+    if case == "sphere":
+        return SPHERE_R - np.hypot(r, z - (H + SPHERE_R - d))
+    if case == "rounded_cylinder":
+        qx = r - (CYLINDER_R - EDGE_R)
+        qz = (H - d + EDGE_R) - z  # the end face at H - d, the rim's centres above it
+        return -(np.hypot(max(qx, 0.0), max(qz, 0.0)) + min(max(qx, qz), 0.0) - EDGE_R)
+    return z - (H - d) if r <= CYLINDER_R else 0.0
+
+
 def penetration(case, coords, u, d):
     """Largest penetration (mm) of the block's top nodes (deformed) into the indenter moved
-    down by d: sphere, R - |p - c|; cylinder, p_z - (10 - d) where r <= R; rounded_cylinder,
-    minus the signed distance to its profile (a rectangle with corners rounded to EDGE_R)."""
+    down by d (depth_inside; the indenter's axis is x = y = 10 mm)."""
     worst = 0.0
     for v, (ux, uy, uz) in u.items():
         x, y, z = coords[v]
-        p = np.array([x + ux, y + uy, z + uz])
-        if case == "sphere":
-            c = np.array([W / 2, W / 2, H + SPHERE_R - d])
-            pen = SPHERE_R - np.linalg.norm(p - c)
-        elif case == "rounded_cylinder":
-            qx = np.hypot(p[0] - W / 2, p[1] - W / 2) - (CYLINDER_R - EDGE_R)
-            qz = (H - d + EDGE_R) - p[2]  # the end face at H - d, the rim's centres above it
-            pen = -(np.hypot(max(qx, 0.0), max(qz, 0.0)) + min(max(qx, qz), 0.0) - EDGE_R)
-        else:
-            r = np.hypot(p[0] - W / 2, p[1] - W / 2)
-            pen = p[2] - (H - d) if r <= CYLINDER_R else 0.0
-        worst = max(worst, pen)
+        r = np.hypot(x + ux - W / 2, y + uy - W / 2)
+        worst = max(worst, depth_inside(case, r, z + uz, d))
     return worst
 
 

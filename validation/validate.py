@@ -90,6 +90,13 @@ def first_crossing(d, F, f):
     return d[k - 1] + t * (d[k] - d[k - 1])
 
 
+def max_force_error(d, F, dr, Fr, lo=0.5, hi=2.5):
+    """The smooth indenters' target metric: the largest |F / F_ref - 1| over the model's samples
+    from lo to hi mm, the reference interpolated as a power law (interp_power)."""
+    mask = (d >= lo - 1e-9) & (d <= hi + 1e-9)
+    return float(np.max(np.abs(F[mask] / interp_power(d[mask], dr, Fr) - 1)))
+
+
 def metrics(dm, Fm, dr, Fr):
     """The paper's metric, the largest displacement difference at equal force over the
     reference's force range (mm), and the RMS force error at the reference's displacements (N).

@@ -14,8 +14,8 @@ build = pytest.importorskip("fsm.build", reason="the builder module (fsm._fsm_bu
 SOURCE = os.environ.get("FSM_SOURCE_DIR", os.path.join(os.path.dirname(__file__), "..", ".."))
 
 
-def test_python_step_benchmark_runs(tmp_path):
-    sys.path.insert(0, os.path.join(SOURCE, "validation"))
+def test_python_step_benchmark_runs(tmp_path, monkeypatch):
+    monkeypatch.syspath_prepend(os.path.join(SOURCE, "validation"))
     import scenes
 
     box = str(tmp_path / "box.off")
