@@ -10,12 +10,13 @@
 //                    [--steps N] [--no-probe] [--continuum-part NAME]
 //                    [--element-tangent-quality Q] [--smoothing element|face|edge|node]
 //                    [--gravity-y] [--no-simd] [--detection-margin F] [--adaptive-threads]
-//                    [--json]
+//                    [--nu NU] [--json]
 // --gravity-y: gravity along -y (the Visible Human data set's down) instead of -z.
 // --no-simd: the scalar link loops (ForceModel::Options::simd = false).
 // --detection-margin: collision::ContactOptions::detection_margin (0: penetrating spheres only).
 // --adaptive-threads: Simulation::Options::adaptive_threads (the pool only while it is faster);
 // the JSON's "pool_share" is the share of the timed steps that ran on the pool.
+// --nu: every region's Poisson's ratio (the continuum law's; the JSON's "nu" is region 0's).
 //
 // --law continuum puts every tetrahedral part on the continuum law, or only NAME with
 // --continuum-part.
@@ -41,6 +42,7 @@ int main(int argc, char** argv) {
   double tolerance = 1e-3;
   double element_tangent_quality = ForceModel<double>::Options{}.element_tangent_quality;
   double detection_margin = collision::ContactOptions<double>{}.detection_margin;
+  double nu = 0;  // 0: each region's own Poisson's ratio
   bool probe = true, json = false, gravity_y = false, simd = true, flutter_guard = true,
        extrapolate = true, reuse = true, adaptive = false;
   for (int i = 1; i < argc; ++i) {
@@ -82,6 +84,8 @@ int main(int argc, char** argv) {
       adaptive = true;
     else if (a == "--detection-margin")
       detection_margin = std::atof(value().c_str());
+    else if (a == "--nu")
+      nu = std::atof(value().c_str());
     else if (a == "--json")
       json = true;
     else if (!a.empty() && a[0] != '-' && path.empty())
@@ -93,7 +97,7 @@ int main(int argc, char** argv) {
           "[--steps N] [--no-probe] [--continuum-part NAME] "
           "[--element-tangent-quality Q] [--smoothing element|face|edge|node] [--gravity-y] "
           "[--no-simd] [--no-flutter-guard] [--no-extrapolation] [--no-reuse-end-forces] "
-          "[--detection-margin F] [--adaptive-threads] [--json]\n",
+          "[--detection-margin F] [--adaptive-threads] [--nu NU] [--json]\n",
           argv[0]);
       return 2;
     }
@@ -111,6 +115,12 @@ int main(int argc, char** argv) {
     const TissueModel<double> model = load_model(path);
     SphereModel<double> spheres = model.spheres;
     const Part* target = nullptr;
+    if (nu != 0)  // every region's Poisson's ratio (the continuum law's; the links ignore it)
+      for (Index r = 0; r < spheres.num_regions(); ++r) {
+        Material<double> m = spheres.region(r).material;
+        m.poisson_ratio = nu;
+        spheres.set_region_material(r, m);
+      }
     for (const Part& p : model.parts) {
       if (law == "continuum" && p.topology == Topology::tetrahedral &&
           (only.empty() || p.name == only))
@@ -190,7 +200,7 @@ int main(int argc, char** argv) {
           "\"element_tangent_quality\": %g, \"element_tangents\": %d, \"fluttered\": %d, "
           "\"flutter_guard\": %s, \"extrapolated_warm_start\": %s, \"reuse_end_forces\": %s, "
           "\"gravity\": \"%s\", \"smoothing\": \"%s\", \"adaptive_threads\": %s, "
-          "\"pool_share\": %.3f}\n",
+          "\"pool_share\": %.3f, \"nu\": %g}\n",
           path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
           int(sim.model().num_tetrahedra()), law.c_str(), threads, tolerance,
           probe ? "true" : "false", int(probe_contacts), int(contacts.num_contacts()), steps,
@@ -198,7 +208,8 @@ int main(int argc, char** argv) {
           diverged_before, element_tangent_quality, int(sim.forces().continuum_element_tangents()),
           int(sim.forces().continuum_fluttered_elements()), flutter_guard ? "true" : "false",
           extrapolate ? "true" : "false", reuse ? "true" : "false", gravity_y ? "-y" : "-z",
-          smoothing.c_str(), adaptive ? "true" : "false", double(on_pool) / double(steps));
+          smoothing.c_str(), adaptive ? "true" : "false", double(on_pool) / double(steps),
+          sim.model().region(0).material.poisson_ratio);
     else
       std::printf(
           "%s: %d spheres, %d links, %d tetrahedra; %s law (%s strain), %d thread(s), CG to %g; "

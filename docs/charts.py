@@ -6,8 +6,11 @@
 Reads  docs/data/bench_force_model.json, docs/data/bench_integrators.json (Google Benchmark JSON)
        docs/data/integrator_accuracy.csv, docs/data/frame_accuracy.csv (if present)
        docs/data/model_step.jsonl (bench_model_step --json lines, one per model, law and threads)
+       docs/data/model_step_nu.jsonl (bench_model_step --json --nu lines: the continuum law's
+       cost against Poisson's ratio)
 Writes docs/img/force_per_link.png, docs/img/step_cost.png, docs/img/integrator_speed_accuracy.png,
-       docs/img/frame_speed_accuracy.png, docs/img/scale_step_time.png, docs/img/model_step_time.png
+       docs/img/frame_speed_accuracy.png, docs/img/scale_step_time.png, docs/img/model_step_time.png,
+       docs/img/continuum_cost_nu.png
 """
 import csv
 import json
@@ -202,6 +205,47 @@ def model_step_chart():
     fig.savefig(os.path.join(IMG, "model_step_time.png"), dpi=120)
 
 
+def nu_chart():
+    """The continuum law's step time and CG iterations against Poisson's ratio (real models, one
+    thread), the link law (which has no Poisson's ratio) as a level line."""
+    path = os.path.join(DATA, "model_step_nu.jsonl")
+    if not os.path.exists(path):
+        return
+    rows = [json.loads(line) for line in open(path) if line.strip()]
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(10.0, 4.2))
+    colors = {}
+    for model in dict.fromkeys(r["model"] for r in rows):
+        color = colors.setdefault(model, ["tab:purple", "tab:brown"][len(colors) % 2])
+        pts = sorted((r for r in rows if r["model"] == model and r["law"] == "continuum"),
+                     key=lambda r: r["nu"])
+        nus = [r["nu"] for r in pts]
+        ax.plot(nus, [r["mean_us"] for r in pts], "o-", color=color, label=f"{model}: continuum, mean")
+        ax.plot(nus, [r["p99_us"] for r in pts], "o-", color=color, alpha=0.35,
+                label=f"{model}: continuum, p99")
+        bx.plot(nus, [r["cg_iterations"] for r in pts], "o-", color=color, label=f"{model}: continuum")
+        for r in rows:
+            if r["model"] == model and r["law"] == "links":
+                ax.axhline(r["mean_us"], color=color, linestyle="--", linewidth=0.9,
+                           label=f"{model}: links (no nu), mean")
+                bx.axhline(r["cg_iterations"], color=color, linestyle="--", linewidth=0.9,
+                           label=f"{model}: links")
+    ax.axhline(1000, color="black", linewidth=0.8)
+    ax.text(0.3, 1060, "1 kHz budget", fontsize=7)
+    ax.axhline(300, color="black", linewidth=0.6, linestyle=":")
+    ax.text(0.3, 315, "uterus continuum target (300 us)", fontsize=7)
+    ax.set_yscale("log")
+    for a in (ax, bx):
+        a.set_xlabel("Poisson's ratio nu (the continuum law's)")
+    ax.set_ylabel("one 1 ms implicit step with a probe, microseconds")
+    bx.set_ylabel("CG iterations per step (block-Jacobi, to 1e-3)")
+    ax.set_title("Step time against nu, one thread")
+    bx.set_title("CG iterations against nu")
+    ax.legend(fontsize=6)
+    bx.legend(fontsize=6)
+    fig.tight_layout()
+    fig.savefig(os.path.join(IMG, "continuum_cost_nu.png"), dpi=120)
+
+
 def accuracy_chart():
     rows = list(csv.DictReader(open(os.path.join(DATA, "integrator_accuracy.csv"))))
     fig, ax = plt.subplots(figsize=(6.4, 4.2))
@@ -262,6 +306,7 @@ if __name__ == "__main__":
     step_chart()
     scale_chart()
     model_step_chart()
+    nu_chart()
     accuracy_chart()
     frame_chart()
     print("wrote", ", ".join(sorted(os.listdir(IMG))))
