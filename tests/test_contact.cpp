@@ -511,6 +511,40 @@ TEST(ContactSolver, ContactOutsideTheLastSolveReportsNoForce) {
   EXPECT_LT(solver.wrench(k).force.z(), -1.0);  // on the plate: down
 }
 
+// A step that is rolled back leaves the contacts' forces where the rollback leaves the model: at
+// the state the step started from. The servo loop moves its proxy by the wrench collect() reports
+// after every step, and the forces of a rejected implicit solve (8.8e4 N on one sphere) flung
+// fsm-demo's probe 3 m (--law continuum --contact vertices). Here symplectic Euler at three times
+// its stable step blows up while a plate presses the block: the first rejected step must report
+// the wrench it started from.
+TEST(ContactSolver, RolledBackStepReportsTheWrenchItStartedFrom) {
+  std::mt19937 rng(71);
+  Simulation<double>::Options o;
+  o.integrator = "symplectic_euler";
+  o.forces.gravity.setZero();
+  Simulation<double> sim(random_model<double>(rng, {3, 3, 3}, 0.2), o);
+  ContactOptions<double> co;
+  co.tetrahedral_surface = false;  // the 5 mm spheres meet the plate at their radius
+  ContactSolver<double> solver(sim.model(), sim.forces(), co);
+  Instrument<double> plate;
+  plate.shape = CylinderShape<double>{0.05, 0.005};
+  plate.pose.position = V3(0.015, 0.015, -0.009);  // top face at z = -4 mm: the bottom layer in it
+  const Index k = solver.add_instrument(plate);
+  const double dt = 3 * sim.stable_time_step();
+  int rejected = 0;
+  for (int s = 0; s < 5000 && rejected == 0; ++s) {
+    solver.compute(sim.model(), sim.forces());
+    const Vector3<double> before = solver.wrench(k).force;
+    const StepReport<double> r = sim.step(dt);
+    solver.collect(sim.forces());
+    if (r.status != StepStatus::diverged) continue;
+    ++rejected;
+    EXPECT_GT(before.norm(), 0.0) << "the plate pressed at the step's start";
+    EXPECT_EQ(solver.wrench(k).force, before) << "step " << s;
+  }
+  EXPECT_EQ(rejected, 1);
+}
+
 TEST(ContactSolver, DegenerateInputGivesDefinedResults) {
   SphereModel<double> m = block<double>({2, 2, 2}, 0.004);
   ContactSolver<double> solver(m);

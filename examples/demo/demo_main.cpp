@@ -55,6 +55,7 @@ struct Args {
   std::string scenario{"probing"};
   double capsule_tear{0.2};
   std::string contact{"faces"};  // how the probe meets tetrahedral parts
+  std::string law{"scene"};      // the tetrahedral parts' force law: scene, links or continuum
 };
 
 // Parses the command line (CLI11): returns the exit status when the program should stop there
@@ -96,6 +97,12 @@ int parse(int argc, char** argv, Args& a) {
                  "how the probe meets tetrahedral parts: vertices (their sphere centres) or faces "
                  "(sample points on their boundary faces; ContactOptions::face_contact)")
       ->check(CLI::IsMember({"vertices", "faces"}))
+      ->capture_default_str();
+  app.add_option("--law", a.law,
+                 "the force law of every tetrahedral part: continuum (neo-Hookean tetrahedra with "
+                 "the material's E and Poisson's ratio), links (the paper's Voigt network) or "
+                 "scene (each part's own, as its scene or model file says; docs/physics.md)")
+      ->check(CLI::IsMember({"scene", "links", "continuum"}))
       ->capture_default_str();
   app.add_option(
          "--scenario", a.scenario,
@@ -161,6 +168,7 @@ int main(int argc, char** argv) {
       so.stress = args.stress;
       so.realtime = args.realtime;
       so.capsule_tear = args.capsule_tear;
+      so.law = args.law;
       return examples::run_myomectomy(model, so);
     }
 
@@ -192,7 +200,9 @@ int main(int argc, char** argv) {
     // as diverged (and the servo loop's watchdog zeroes the force): a thin ligament flung by the
     // probe gained energy in one linearised 1 ms step (docs/haptics.md, "Under load").
     so.divergence.max_substep_halvings = 2;
-    Simulation<double> sim(model.spheres, so);
+    SphereModel<double> spheres = model.spheres;
+    const std::string law = examples::apply_law(model, spheres, args.law);
+    Simulation<double> sim(std::move(spheres), so);
     // CG to a relative residual of 1e-3: against 1e-9 the surface differs by 0.3 um RMS after 3 s
     // of probing, at half the iterations of 1e-6 (docs/benchmarks.md, whole frame).
     ImplicitEulerIntegrator<double>::Options io;
@@ -376,7 +386,7 @@ int main(int argc, char** argv) {
         "\"step_max_us\": %.1f, "
         "\"watchdog_trips\": %zu, \"diverged_steps\": %zu, \"peak_instrument_force_N\": %.4f, "
         "\"peak_commanded_force_N\": %.4f, \"stress_processes\": %d, \"realtime_priority\": %d, "
-        "\"realtime\": %s, \"threading\": \"%s\", \"exported_states\": %zu, "
+        "\"realtime\": %s, \"threading\": \"%s\", \"law\": \"%s\", \"exported_states\": %zu, "
         "\"out\": \"%s\"}",
         model.name.c_str(), int(model.spheres.num_nodes()), int(model.spheres.num_links()),
         int(model.skin.num_vertices()), snap.time, frame_hz.size(), fmin, fmed, fmax,
@@ -384,7 +394,7 @@ int main(int argc, char** argv) {
         st.period_max * 1e6, st.period_error_p99 * 1e6, st.step_p50 * 1e6, st.step_p99 * 1e6,
         st.step_max * 1e6, st.watchdog_trips, st.diverged_steps, peak, st.peak_force,
         stress.count(), args.realtime, st.realtime ? "true" : "false", args.threading.c_str(),
-        exporter ? exporter->states() : std::size_t(0), args.out.c_str());
+        law.c_str(), exporter ? exporter->states() : std::size_t(0), args.out.c_str());
     {
       std::ofstream f(args.out + "/stats.json");
       f << json << '\n';
@@ -407,7 +417,9 @@ int main(int argc, char** argv) {
           st.ticks, st.period_p50 * 1e6, st.period_p99 * 1e6, st.period_max * 1e6,
           st.missed_deadlines);
       std::printf(
-          "  simulation step (contacts + implicit Euler): p50 %.0f us, p99 %.0f us, max %.0f us\n",
+          "  simulation step (contacts + implicit Euler, %s law): p50 %.0f us, p99 %.0f us, max "
+          "%.0f us\n",
+          law.c_str(),
           st.step_p50 * 1e6, st.step_p99 * 1e6, st.step_max * 1e6);
       std::printf("  skinning (%d vertices) + normals + BVH refit: %.0f us per frame\n",
                   int(model.skin.num_vertices()), skin_mean * 1e6);

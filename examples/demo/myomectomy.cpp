@@ -229,6 +229,18 @@ double percentile(std::vector<double> v, double q) {
 
 }  // namespace
 
+std::string apply_law(const TissueModel<double>& model, SphereModel<double>& spheres,
+                      const std::string& law) {
+  bool links = false, continuum = false;
+  for (const Part& p : model.parts) {
+    if (p.topology != Topology::tetrahedral) continue;
+    if (law != "scene")
+      spheres.set_region_law(p.region, law == "continuum" ? ForceLaw::continuum : ForceLaw::links);
+    (spheres.region(p.region).law == ForceLaw::continuum ? continuum : links) = true;
+  }
+  return continuum && links ? "mixed" : continuum ? "continuum" : "links";
+}
+
 int run_myomectomy(const TissueModel<double>& model, const ScenarioOptions& opt) {
   const Part& body = find_part(model, "body");
   const Part& fibroid = find_part(model, "fibroid");
@@ -255,6 +267,7 @@ int run_myomectomy(const TissueModel<double>& model, const ScenarioOptions& opt)
   }
   if (capsule.empty())
     throw Error("", "--scenario myomectomy", "the fibroid is not attached to the body");
+  const std::string law = apply_law(model, spheres, opt.law);
   Simulation<double> sim(spheres, so);
   ImplicitEulerIntegrator<double>::Options io;
   io.tolerance = 1e-3;
@@ -408,14 +421,14 @@ int run_myomectomy(const TissueModel<double>& model, const ScenarioOptions& opt)
       "\"peak_commanded_force_N\": %.3f, \"servo_ticks\": %zu, \"servo_missed_deadlines\": %zu, "
       "\"servo_period_p99_us\": %.1f, \"step_p50_us\": %.1f, \"step_p99_us\": %.1f, "
       "\"step_max_us\": %.1f, \"watchdog_trips\": %zu, \"diverged_steps\": %zu, "
-      "\"stress_processes\": %d, \"out\": \"%s\"}",
+      "\"stress_processes\": %d, \"law\": \"%s\", \"out\": \"%s\"}",
       model.name.c_str(), int(model.spheres.num_nodes()), int(held_body),
       int(action.capsule_links()), opt.capsule_tear, int(action.cut().links_cut),
       int(action.cut().tetrahedra_cut), int(action.capsule_after_incision()),
       int(action.torn_links()), int(action.grasped()), freed ? "true" : "false", action.free_time(),
       peak, st.peak_force, st.ticks, st.missed_deadlines, st.period_p99 * 1e6,
       percentile(steps, 0.5) * 1e6, percentile(steps, 0.99) * 1e6, st.step_max * 1e6,
-      st.watchdog_trips, st.diverged_steps, stress.count(), opt.out.c_str());
+      st.watchdog_trips, st.diverged_steps, stress.count(), law.c_str(), opt.out.c_str());
   {
     std::ofstream out(opt.out + "/stats.json");
     out << json << '\n';

@@ -16,7 +16,14 @@ struct ScenarioOptions {
   int stress{0};             ///< competing busy processes during the session
   int realtime{0};           ///< SCHED_FIFO priority of the loop's threads; 0: none
   double capsule_tear{0.2};  ///< tear strain of the fibroid's attachment (the capsule)
+  std::string law{"scene"};  ///< the tetrahedral parts' force law: scene, links or continuum
 };
+
+/// Sets every tetrahedral part's force law in `spheres` (a copy of model.spheres): "links" or
+/// "continuum"; "scene" leaves each part's own. Returns the law the tetrahedral parts then use:
+/// "links", "continuum" or "mixed" (the demo's --law, reported in stats.json).
+std::string apply_law(const TissueModel<double>& model, SphereModel<double>& spheres,
+                      const std::string& law);
 
 /// Runs the scenario on `model` (it needs parts named "body" and "fibroid"; fsm::Error if not).
 /// Returns the process's exit status.

@@ -235,6 +235,11 @@ class ForceModel {
   /// @brief The contacts' forces at the model's state and the contact time, into each contact's
   /// `force`.
   void finish_contacts(const SphereModel<Scalar>& model) noexcept;
+  /// @brief After a step that is rolled back: each contact's and held node's `force` back to what
+  /// it was at start_contacts() (the end of the last accepted step, or detection), so that a
+  /// ContactSolver::collect() or a wrench read after the rollback reports the restored state, not
+  /// the rejected one. Simulation::step calls it.
+  void reject_contacts() noexcept;
   /// @brief Caps each contact's stiffness for an explicit step of length h: at most
   /// \f$m/(2h^2)\f$ (m the sphere's mass, the reduced mass for a part contact), the damping scaled
   /// to keep its ratio. An explicit integrator cannot take a contact stiffer than its step allows;
@@ -451,6 +456,9 @@ class ForceModel {
   std::vector<PenaltyContact<Scalar>> m_contacts;
   Index m_num_contacts{0};
   std::vector<HeldNode<Scalar>> m_held;
+  // The contacts' and held nodes' `force` at start_contacts(), for reject_contacts() (sized with
+  // m_contacts and m_held).
+  std::vector<Vector3<Scalar>> m_contact_forces_before, m_held_forces_before;
   Index m_num_held{0};
   Scalar m_contact_time{0};
   bool m_contacts_linearised{false};       // the last step was implicit (contact_work's accounting)

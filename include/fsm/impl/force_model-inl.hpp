@@ -220,7 +220,10 @@ template <typename Scalar>
 void ForceModel<Scalar>::reserve_contacts(Index capacity) {
   // (Defined before refresh() uses it.)
   if (capacity < 0) throw Error("", "contacts", "capacity must be non-negative");
-  if (Index(m_contacts.size()) < capacity) m_contacts.resize(std::size_t(capacity));
+  if (Index(m_contacts.size()) < capacity) {
+    m_contacts.resize(std::size_t(capacity));
+    m_contact_forces_before.resize(std::size_t(capacity));
+  }
 }
 
 template <typename Scalar>
@@ -232,7 +235,10 @@ bool ForceModel<Scalar>::add_contact(const PenaltyContact<Scalar>& contact) noex
 
 template <typename Scalar>
 void ForceModel<Scalar>::reserve_held(Index capacity) {
-  if (capacity > Index(m_held.size())) m_held.resize(std::size_t(capacity));
+  if (capacity > Index(m_held.size())) {
+    m_held.resize(std::size_t(capacity));
+    m_held_forces_before.resize(std::size_t(capacity));
+  }
 }
 
 template <typename Scalar>
@@ -262,7 +268,18 @@ void ForceModel<Scalar>::start_contacts(const SphereModel<Scalar>& model,
             ? detail::contact_force(c, x, v, detail::surface_advance(c, m_contact_time), fn, slip)
             : Vector3<Scalar>::Zero();
     c.in_solve = false;
+    m_contact_forces_before[std::size_t(k)] = c.force;
   }
+  for (Index k = 0; k < m_num_held; ++k)
+    m_held_forces_before[std::size_t(k)] = m_held[std::size_t(k)].force;
+}
+
+template <typename Scalar>
+void ForceModel<Scalar>::reject_contacts() noexcept {
+  for (Index k = 0; k < m_num_contacts; ++k)
+    m_contacts[std::size_t(k)].force = m_contact_forces_before[std::size_t(k)];
+  for (Index k = 0; k < m_num_held; ++k)
+    m_held[std::size_t(k)].force = m_held_forces_before[std::size_t(k)];
 }
 
 template <typename Scalar>

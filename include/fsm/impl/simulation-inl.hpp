@@ -484,6 +484,7 @@ StepReport<Scalar> Simulation<Scalar>::advance(Scalar dt) noexcept {
     restore_state();
     m_integrator->reset();              // its warm start came from the rejected state
     m_forces.reuse_kept_forces(false);  // kept at the rejected state: never a step's start
+    m_forces.reject_contacts();         // finished at the rejected state: back to the restored
   }
   m_forces.set_contact_time(contact_time);
   report.status = StepStatus::diverged;
