@@ -25,6 +25,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -42,7 +43,7 @@ int main(int argc, char** argv) {
   double tolerance = 1e-3;
   double element_tangent_quality = ForceModel<double>::Options{}.element_tangent_quality;
   double detection_margin = collision::ContactOptions<double>{}.detection_margin;
-  double nu = 0;  // 0: each region's own Poisson's ratio
+  std::optional<double> nu;  // unset: each region's own Poisson's ratio
   bool probe = true, json = false, gravity_y = false, simd = true, flutter_guard = true,
        extrapolate = true, reuse = true, adaptive = false;
   for (int i = 1; i < argc; ++i) {
@@ -115,10 +116,10 @@ int main(int argc, char** argv) {
     const TissueModel<double> model = load_model(path);
     SphereModel<double> spheres = model.spheres;
     const Part* target = nullptr;
-    if (nu != 0)  // every region's Poisson's ratio (the continuum law's; the links ignore it)
+    if (nu)  // every region's Poisson's ratio (the continuum law's; the links ignore it)
       for (Index r = 0; r < spheres.num_regions(); ++r) {
         Material<double> m = spheres.region(r).material;
-        m.poisson_ratio = nu;
+        m.poisson_ratio = *nu;
         spheres.set_region_material(r, m);
       }
     for (const Part& p : model.parts) {

@@ -213,9 +213,8 @@ def nu_chart():
         return
     rows = [json.loads(line) for line in open(path) if line.strip()]
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(10.0, 4.2))
-    colors = {}
-    for model in dict.fromkeys(r["model"] for r in rows):
-        color = colors.setdefault(model, ["tab:purple", "tab:brown"][len(colors) % 2])
+    models = list(dict.fromkeys(r["model"] for r in rows))
+    for model, color in zip(models, ["tab:purple", "tab:brown", "tab:olive"]):
         pts = sorted((r for r in rows if r["model"] == model and r["law"] == "continuum"),
                      key=lambda r: r["nu"])
         nus = [r["nu"] for r in pts]

@@ -419,8 +419,7 @@ int main(int argc, char** argv) {
       std::printf(
           "  simulation step (contacts + implicit Euler, %s law): p50 %.0f us, p99 %.0f us, max "
           "%.0f us\n",
-          law.c_str(),
-          st.step_p50 * 1e6, st.step_p99 * 1e6, st.step_max * 1e6);
+          law.c_str(), st.step_p50 * 1e6, st.step_p99 * 1e6, st.step_max * 1e6);
       std::printf("  skinning (%d vertices) + normals + BVH refit: %.0f us per frame\n",
                   int(model.skin.num_vertices()), skin_mean * 1e6);
       std::printf(
