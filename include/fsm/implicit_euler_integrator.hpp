@@ -44,7 +44,10 @@ class ImplicitEulerIntegrator final : public Integrator<Scalar> {
     Preconditioner preconditioner{Preconditioner::block_jacobi};
     /// Jacobian form for the symmetric solvers (eigen_lu always uses the exact one).
     JacobianForm jacobian{JacobianForm::definite};
-    /// CG stops when \f$|\mathbf{r}| \le\f$ tolerance \f$\cdot|\mathbf{b}|\f$.
+    /// CG stops when \f$|\mathbf{r}|_{P^{-1}} \le\f$ tolerance \f$\cdot|\mathbf{b}|_{P^{-1}}\f$,
+    /// the norms weighted by the preconditioner (\f$|\mathbf{r}|_{P^{-1}}^2 = \mathbf{r}^T
+    /// P^{-1}\mathbf{r}\f$): the residual in velocity units, so a light node's error counts as the
+    /// motion it makes, not as its small share of the momentum.
     Scalar tolerance{std::is_same_v<Scalar, float> ? Scalar(1e-4) : Scalar(1e-6)};
     /// CG iteration cap; reaching it is not a failure (the partial solution is used and the
     /// iteration count reported), a breakdown is.

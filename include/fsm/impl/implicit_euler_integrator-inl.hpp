@@ -128,15 +128,24 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg_pass(
     reset();
     return {false, 0};
   }
+  // The stopping test weighs the residual by the preconditioner: |r|_P^-1 <= tol |b|_P^-1
+  // (Options::tolerance). P^-1 r is in velocity units, so each node's error counts as the motion
+  // it makes; the plain |r| (momentum) let a light node's velocity be far off while heavy nodes
+  // dominated the norm (docs/physics.md).
+  m_r = m_rhs;
+  precondition();
+  const Scalar target =
+      m_options.tolerance * std::sqrt(std::max(Scalar(0), m_r.cwiseProduct(m_z).sum()));
   forces.apply_implicit(model, m_blocks.data(), m_dv, m_q);
   m_r = m_rhs - m_q;
-  const Scalar target = m_options.tolerance * bnorm;
+  precondition();
+  Scalar rz = m_r.cwiseProduct(m_z).sum();
+  // (Written so that a NaN residual goes into CG and fails there.)
+  auto converged = [&](Scalar r_z) { return r_z <= Scalar(0) || std::sqrt(r_z) <= target; };
   int it = 0;
   bool ok = true;
-  if (!(m_r.norm() <= target)) {  // written so that a NaN residual goes into CG and fails there
-    precondition();
+  if (!converged(rz) || !std::isfinite(rz)) {
     m_p = m_z;
-    Scalar rz = m_r.cwiseProduct(m_z).sum();
     for (it = 1; it <= m_options.max_iterations; ++it) {
       forces.apply_implicit(model, m_blocks.data(), m_p, m_q);
       const Scalar pq = m_p.cwiseProduct(m_q).sum();
@@ -147,9 +156,9 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg_pass(
       const Scalar alpha = rz / pq;
       m_dv += alpha * m_p;
       m_r -= alpha * m_q;
-      if (m_r.norm() <= target) break;
       precondition();
       const Scalar rz_new = m_r.cwiseProduct(m_z).sum();
+      if (converged(rz_new)) break;
       m_p = m_z + (rz_new / rz) * m_p;
       rz = rz_new;
     }

@@ -295,6 +295,7 @@ EnergyReport<Scalar> Simulation<Scalar>::energy() const noexcept {
 template <typename Scalar>
 void Simulation<Scalar>::reset_energy_reference() noexcept {
   m_energy_reference = total_energy();
+  m_start_energy = m_energy_reference;
   m_external_work = Scalar(0);
   m_reference_stale = false;
 }
@@ -450,19 +451,23 @@ StepReport<Scalar> Simulation<Scalar>::advance(Scalar dt) noexcept {
         good = std::isfinite(energy);
         if (good) {
           m_energy_reference = energy;
+          m_start_energy = energy;
           m_external_work = -work;  // added back below: the reference already holds it
           m_reference_stale = false;
         }
       } else {
-        const Scalar budget = m_energy_reference + m_external_work + work;
-        good = std::isfinite(energy) &&
-               energy <= budget + policy.energy_tolerance * std::abs(budget) + m_energy_floor;
+        auto within = [&](Scalar budget) {
+          return energy <= budget + policy.energy_tolerance * std::abs(budget) + m_energy_floor;
+        };
+        good = std::isfinite(energy) && within(m_energy_reference + m_external_work + work) &&
+               (!policy.check_step_energy || within(m_start_energy + work));
       }
     }
     report.substeps += n;
     report.solver_iterations += iterations;
     if (good) {
       m_external_work += work;
+      if (policy.check_energy) m_start_energy = energy;
       m_time += dt;
       // A region falling asleep zeroes its velocities: the kept forces are then not at this state.
       bool kept = keep_forces && policy.check_energy;
