@@ -84,6 +84,40 @@ TYPED_TEST(SimulationTyped, UnstableStepIsDetectedAndRolledBack) {
   }
 }
 
+// DivergencePolicy::check_step_energy: the cumulative budget grows slack as damping removes
+// energy, so a model that has come to rest could gain many times its energy in accepted steps.
+// A stretched model rings down at a stable step to under 2 % of its energy; then symplectic Euler
+// at three times its limit. With the step check the first step that more than doubles the energy
+// is undone; without it, steps pass until the energy nears the old budget.
+TEST(Simulation, EachStepIsHeldToTheEnergyItStartedWith) {
+  for (const bool step_check : {true, false}) {
+    std::mt19937 rng(71);
+    auto o = options<double>("symplectic_euler");
+    o.divergence.check_step_energy = step_check;
+    SphereModel<double> model = random_model<double>(rng, {3, 3, 3}, 0.2);
+    model.positions() *= 1.05;  // stretched: energy to ring down
+    Simulation<double> sim(model, o);
+    const double start = sim.energy().total();
+    const double stable = 0.5 * sim.stable_time_step();
+    for (int s = 0; s < 200000 && sim.energy().total() > 0.02 * start; ++s)
+      ASSERT_EQ(sim.step(stable).status, StepStatus::ok);
+    const double rest = sim.energy().total();
+    ASSERT_LT(rest, 0.02 * start);
+    double highest = rest;
+    for (int s = 0; s < 5000; ++s) {
+      const StepReport<double> r = sim.step(3 * stable / 0.5);
+      if (r.status == StepStatus::diverged) break;
+      highest = std::max(highest, double(r.energy));
+    }
+    std::printf("step check %d: %.3g J at rest (%.3g J at the start), highest accepted %.3g J\n",
+                int(step_check), rest, start, highest);
+    if (step_check)
+      EXPECT_LT(highest, 10 * rest);
+    else
+      EXPECT_GT(highest, 10 * rest);  // what the step check is for
+  }
+}
+
 // Bad edits between steps and a model resized without refresh() are refused, never stepped.
 TEST(Simulation, InvalidInputIsRefusedAndTheLastGoodStateKept) {
   SphereModel<double> model = block<double>({3, 3, 3}, 0.005);
