@@ -71,7 +71,7 @@ void define_simulation(py::module_& m) {
 
 Simulation(model, integrator="implicit_euler", gravity=(0, 0, -9.81), damping="along_link",
            threads=1, check_energy=True, energy_tolerance=1.0, max_substep_halvings=0,
-           drag=0.0, element_tangent_quality=0.3, strain_smoothing="element",
+           check_step_energy=True, drag=0.0, element_tangent_quality=0.3, strain_smoothing="element",
            smoothing_element_share=0.1, flutter_guard=True, reuse_end_forces=True,
            adaptive_threads=False)
 
@@ -90,12 +90,15 @@ implicit step evaluates the continuum elements' forces there, and the next step 
 same run to the last bit; False evaluates both). adaptive_threads: with threads above 1, time
 steps on the worker pool and without it now and then and keep the faster (sim.uses_pool says
 which runs; the two agree to rounding). A
-diverging step is rolled back and reported, never left as NaN. Raises fsm.Error for a bad model or
+diverging step is rolled back and reported, never left as NaN: with check_energy, a step whose
+energy exceeds the budget (the reference energy plus the external work since) by more than
+energy_tolerance times it; with check_step_energy as well, one that exceeds its own start energy
+plus its work by as much (the cumulative budget grows slack as damping removes energy). Raises fsm.Error for a bad model or
 option.)")
       .def(py::init([](const SphereModel<Scalar>& model, const py::object& integrator,
                        const Vector3<Scalar>& gravity, const std::string& damping, int threads,
                        bool check_energy, Scalar energy_tolerance, int max_substep_halvings,
-                       Scalar drag, Scalar element_tangent_quality,
+                       bool check_step_energy, Scalar drag, Scalar element_tangent_quality,
                        const std::string& strain_smoothing, Scalar smoothing_element_share,
                        bool flutter_guard, bool reuse_end_forces, bool adaptive_threads) {
              typename Sim::Options o;
@@ -112,13 +115,14 @@ option.)")
              o.divergence.check_energy = check_energy;
              o.divergence.energy_tolerance = energy_tolerance;
              o.divergence.max_substep_halvings = max_substep_halvings;
+             o.divergence.check_step_energy = check_step_energy;
              return std::make_unique<Sim>(model, to_integrator(integrator), o);
            }),
            py::arg("model"), py::arg("integrator") = "implicit_euler",
            py::arg("gravity") = Vector3<Scalar>(0, 0, -9.81), py::arg("damping") = "along_link",
            py::arg("threads") = 1, py::arg("check_energy") = true,
            py::arg("energy_tolerance") = 1.0, py::arg("max_substep_halvings") = 0,
-           py::arg("drag") = 0.0, py::arg("element_tangent_quality") = 0.3,
+           py::arg("check_step_energy") = true, py::arg("drag") = 0.0, py::arg("element_tangent_quality") = 0.3,
            py::arg("strain_smoothing") = "element", py::arg("smoothing_element_share") = 0.1,
            py::arg("flutter_guard") = true, py::arg("reuse_end_forces") = true,
            py::arg("adaptive_threads") = false)

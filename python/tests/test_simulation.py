@@ -91,6 +91,33 @@ def test_divergence_is_reported_and_rolled_back(block):
     assert sim.step(float("nan")).status == "invalid_time_step"
 
 
+def test_each_step_is_held_to_the_energy_it_started_with(block):
+    """check_step_energy: after the block rings down, an unstable step size is caught at once; the
+    cumulative budget alone lets the energy grow many times over first."""
+    highest = {}
+    for step_check in (True, False):
+        sim = fsm.Simulation(block, integrator="symplectic_euler", gravity=(0, 0, 0), drag=50.0,
+                             check_step_energy=step_check)
+        sim.model.positions[:, 2] *= 1.05  # stretched (not the fixed layer): energy to ring down
+        dt = 0.5 * sim.stable_time_step
+        start = sim.energy().total
+        for _ in range(200000):
+            assert sim.step(dt).status == "ok"
+            if sim.energy().total < 0.02 * start:
+                break
+        rest = sim.energy().total
+        assert rest < 0.02 * start
+        top = rest
+        for _ in range(5000):
+            r = sim.step(6 * dt)
+            if r.status == "diverged":
+                break
+            top = max(top, r.energy)
+        highest[step_check] = top / rest
+    assert highest[True] < 10
+    assert highest[False] > 10
+
+
 def test_two_sphere_oscillator_frequency(tissue):
     """q'' = -(2k/m) q: the period measured through the bindings matches 2 pi sqrt(m / 2k)."""
     m, k = 0.001, 500.0
