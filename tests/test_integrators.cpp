@@ -541,12 +541,14 @@ TEST(Integrators, ConjugateGradientStopsOnTheErrorsEnergyNotItsMomentum) {
       }
     return forces;
   };
-  auto run = [&](IE::Solver solver, double tolerance) {
+  auto run = [&](IE::Solver solver, double tolerance,
+                 IE::Preconditioner preconditioner = IE::Preconditioner::block_jacobi) {
     SphereModel<double> model = start;
     ForceModel<double> forces = held(model);
     IE::Options o;
     o.solver = solver;
     o.tolerance = tolerance;
+    o.preconditioner = preconditioner;
     IE ie(o);
     ie.prepare(model);
     EXPECT_TRUE(ie.step(model, forces, 1e-3).ok);
@@ -572,12 +574,15 @@ TEST(Integrators, ConjugateGradientStopsOnTheErrorsEnergyNotItsMomentum) {
     const Eigen::Map<const Eigen::VectorXd> f(u.data(), u.size());
     return f.dot(A * f);
   };
-  for (const double tolerance : {1e-3, 1e-2}) {
-    const Positions<double> cg = run(IE::Solver::conjugate_gradient, tolerance);
-    const double ratio = std::sqrt(energy(cg - exact) / energy(exact));
-    std::printf("tolerance %g: error / change in the energy norm %.3g\n", tolerance, ratio);
-    EXPECT_LT(ratio, 2 * tolerance);
-  }
+  for (const auto preconditioner : {IE::Preconditioner::block_jacobi, IE::Preconditioner::jacobi})
+    for (const double tolerance : {1e-3, 1e-2}) {
+      const Positions<double> cg = run(IE::Solver::conjugate_gradient, tolerance, preconditioner);
+      const double ratio = std::sqrt(energy(cg - exact) / energy(exact));
+      std::printf("%s, tolerance %g: error / change in the energy norm %.3g\n",
+                  preconditioner == IE::Preconditioner::jacobi ? "Jacobi" : "block-Jacobi",
+                  tolerance, ratio);
+      EXPECT_LT(ratio, 2 * tolerance);
+    }
 }
 
 }  // namespace

@@ -203,8 +203,9 @@ int main(int argc, char** argv) {
     SphereModel<double> spheres = model.spheres;
     const std::string law = examples::apply_law(model, spheres, args.law);
     Simulation<double> sim(std::move(spheres), so);
-    // CG to a relative residual of 1e-3: against 1e-9 the surface differs by 0.3 um RMS after 3 s
-    // of probing, at half the iterations of 1e-6 (docs/benchmarks.md, whole frame).
+    // CG to a relative tolerance of 1e-3 (ImplicitEulerIntegrator::Options::tolerance): against
+    // 1e-9 the surface differs by well under a micrometre after 3 s of probing, at a fraction of
+    // the iterations of 1e-6 (docs/benchmarks.md, whole frame).
     ImplicitEulerIntegrator<double>::Options io;
     io.tolerance = 1e-3;
     sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));

@@ -46,8 +46,12 @@ class ImplicitEulerIntegrator final : public Integrator<Scalar> {
     JacobianForm jacobian{JacobianForm::definite};
     /// CG stops when \f$|\mathbf{r}|_{P^{-1}} \le\f$ tolerance \f$\cdot|\mathbf{b}|_{P^{-1}}\f$,
     /// the norms weighted by the preconditioner (\f$|\mathbf{r}|_{P^{-1}}^2 = \mathbf{r}^T
-    /// P^{-1}\mathbf{r}\f$): the residual in velocity units, so a light node's error counts as the
-    /// motion it makes, not as its small share of the momentum.
+    /// P^{-1}\mathbf{r}\f$): close to the error's energy norm as far as P matches the system, so
+    /// each node's velocity error weighs by its kinetic energy rather than its momentum, and
+    /// stiff rows (contacts, held nodes) cannot hide light nodes' errors. Where
+    /// \f$\mathbf{r}^T P^{-1}\mathbf{r}\f$ is not positive (a preconditioner that is not
+    /// positive definite, possible with JacobianForm::symmetric) the plain test
+    /// \f$|\mathbf{r}| \le\f$ tolerance \f$\cdot|\mathbf{b}|\f$ applies.
     Scalar tolerance{std::is_same_v<Scalar, float> ? Scalar(1e-4) : Scalar(1e-6)};
     /// CG iteration cap; reaching it is not a failure (the partial solution is used and the
     /// iteration count reported), a breakdown is.

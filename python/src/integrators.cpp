@@ -52,7 +52,8 @@ void define_integrators(py::module_& m) {
 solver: "conjugate_gradient" (matrix-free, allocation-free; default), "eigen_ldlt" or "eigen_lu"
 (assembled, exact; eigen_lu uses the exact non-symmetric Jacobian).
 jacobian: "definite" (default), "symmetric" or "exact".
-tolerance: CG relative residual; max_iterations: CG cap per solve.
+tolerance: CG stops when its residual, weighted by the preconditioner, falls to this fraction
+of the right-hand side's (sqrt(r P^-1 r) <= tol sqrt(b P^-1 b)); max_iterations: CG cap per solve.
 max_contact_passes: solves per step while the set of penetrating contacts changes (1: keep the
 start's set).
 preconditioner: CG's, "block_jacobi" (3 x 3 diagonal blocks; default) or "jacobi".
@@ -110,7 +111,7 @@ iterations under smooth loading.)")
           "CG's preconditioner")
       .def_property_readonly(
           "tolerance", [](const IE& ie) { return ie.options().tolerance; },
-          "CG relative residual tolerance")
+          "CG's relative tolerance on the preconditioner-weighted residual")
       .def_property_readonly(
           "max_iterations", [](const IE& ie) { return ie.options().max_iterations; },
           "CG iteration cap per solve")

@@ -71,9 +71,9 @@ void define_simulation(py::module_& m) {
 
 Simulation(model, integrator="implicit_euler", gravity=(0, 0, -9.81), damping="along_link",
            threads=1, check_energy=True, energy_tolerance=1.0, max_substep_halvings=0,
-           check_step_energy=True, drag=0.0, element_tangent_quality=0.3, strain_smoothing="element",
+           drag=0.0, element_tangent_quality=0.3, strain_smoothing="element",
            smoothing_element_share=0.1, flutter_guard=True, reuse_end_forces=True,
-           adaptive_threads=False)
+           adaptive_threads=False, check_step_energy=True)
 
 The model is copied in; sim.model is the simulated one. integrator is a name from
 fsm.integrator_names() or an fsm.Integrator instance (copied). drag (1/s) is the surroundings'
@@ -98,9 +98,10 @@ option.)")
       .def(py::init([](const SphereModel<Scalar>& model, const py::object& integrator,
                        const Vector3<Scalar>& gravity, const std::string& damping, int threads,
                        bool check_energy, Scalar energy_tolerance, int max_substep_halvings,
-                       bool check_step_energy, Scalar drag, Scalar element_tangent_quality,
+                       Scalar drag, Scalar element_tangent_quality,
                        const std::string& strain_smoothing, Scalar smoothing_element_share,
-                       bool flutter_guard, bool reuse_end_forces, bool adaptive_threads) {
+                       bool flutter_guard, bool reuse_end_forces, bool adaptive_threads,
+                       bool check_step_energy) {
              typename Sim::Options o;
              o.adaptive_threads = adaptive_threads;
              o.forces.strain_smoothing = to_smoothing(strain_smoothing);
@@ -122,10 +123,10 @@ option.)")
            py::arg("gravity") = Vector3<Scalar>(0, 0, -9.81), py::arg("damping") = "along_link",
            py::arg("threads") = 1, py::arg("check_energy") = true,
            py::arg("energy_tolerance") = 1.0, py::arg("max_substep_halvings") = 0,
-           py::arg("check_step_energy") = true, py::arg("drag") = 0.0, py::arg("element_tangent_quality") = 0.3,
+           py::arg("drag") = 0.0, py::arg("element_tangent_quality") = 0.3,
            py::arg("strain_smoothing") = "element", py::arg("smoothing_element_share") = 0.1,
            py::arg("flutter_guard") = true, py::arg("reuse_end_forces") = true,
-           py::arg("adaptive_threads") = false)
+           py::arg("adaptive_threads") = false, py::arg("check_step_energy") = true)
       .def("step", &Sim::step, py::arg("dt"), py::call_guard<py::gil_scoped_release>(),
            "Advances by dt seconds; returns a StepReport. Never raises.")
       .def_property_readonly("uses_pool", &Sim::uses_pool,

@@ -114,8 +114,8 @@ def test_each_step_is_held_to_the_energy_it_started_with(block):
                 break
             top = max(top, r.energy)
         highest[step_check] = top / rest
-    assert highest[True] < 10
-    assert highest[False] > 10
+    assert highest[True] < 10  # measured 6.1 (the floor lets the first steps through)
+    assert highest[False] > 5 * highest[True]  # measured 66
 
 
 def test_two_sphere_oscillator_frequency(tissue):

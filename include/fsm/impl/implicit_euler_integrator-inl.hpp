@@ -129,19 +129,25 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg_pass(
     return {false, 0};
   }
   // The stopping test weighs the residual by the preconditioner: |r|_P^-1 <= tol |b|_P^-1
-  // (Options::tolerance). P^-1 r is in velocity units, so each node's error counts as the motion
-  // it makes; the plain |r| (momentum) let a light node's velocity be far off while heavy nodes
-  // dominated the norm (docs/physics.md).
+  // (Options::tolerance), each node's error by its kinetic energy rather than its momentum; the
+  // plain |r| let a light node's velocity be far off while stiff rows dominated |b|
+  // (docs/physics.md). A preconditioner that is not positive definite (the symmetric Jacobian
+  // form's compressed links can make a diagonal negative) falls back to the plain test wherever
+  // r^T P^-1 r is not positive.
+  const Scalar plain_target = m_options.tolerance * bnorm;
   m_r = m_rhs;
   precondition();
-  const Scalar target =
-      m_options.tolerance * std::sqrt(std::max(Scalar(0), m_r.cwiseProduct(m_z).sum()));
+  const Scalar bz = m_r.cwiseProduct(m_z).sum();
+  const bool weighted = bz > Scalar(0) && std::isfinite(bz);
+  const Scalar target2 = weighted ? m_options.tolerance * m_options.tolerance * bz : Scalar(0);
   forces.apply_implicit(model, m_blocks.data(), m_dv, m_q);
   m_r = m_rhs - m_q;
   precondition();
   Scalar rz = m_r.cwiseProduct(m_z).sum();
   // (Written so that a NaN residual goes into CG and fails there.)
-  auto converged = [&](Scalar r_z) { return r_z <= Scalar(0) || std::sqrt(r_z) <= target; };
+  auto converged = [&](Scalar r_z) {
+    return weighted && r_z > Scalar(0) ? r_z <= target2 : m_r.norm() <= plain_target;
+  };
   int it = 0;
   bool ok = true;
   if (!converged(rz) || !std::isfinite(rz)) {
