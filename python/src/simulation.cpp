@@ -89,12 +89,11 @@ from then on (False: the negative control). reuse_end_forces: the energy check a
 implicit step evaluates the continuum elements' forces there, and the next step reuses them (the
 same run to the last bit; False evaluates both). adaptive_threads: with threads above 1, time
 steps on the worker pool and without it now and then and keep the faster (sim.uses_pool says
-which runs; the two agree to rounding). A
-diverging step is rolled back and reported, never left as NaN: with check_energy, a step whose
-energy exceeds the budget (the reference energy plus the external work since) by more than
-energy_tolerance times it; with check_step_energy as well, one that exceeds its own start energy
-plus its work by as much (the cumulative budget grows slack as damping removes energy). Raises fsm.Error for a bad model or
-option.)")
+which runs; the two agree to rounding). A diverging step is rolled back and reported, never left
+as NaN: with check_energy, a step whose energy exceeds the budget (the reference energy plus the
+external work since) by more than energy_tolerance times it; with check_step_energy as well, one
+that exceeds its own start energy plus its work by as much (the cumulative budget grows slack as
+damping removes energy). Raises fsm.Error for a bad model or option.)")
       .def(py::init([](const SphereModel<Scalar>& model, const py::object& integrator,
                        const Vector3<Scalar>& gravity, const std::string& damping, int threads,
                        bool check_energy, Scalar energy_tolerance, int max_substep_halvings,
