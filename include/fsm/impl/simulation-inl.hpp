@@ -451,7 +451,6 @@ StepReport<Scalar> Simulation<Scalar>::advance(Scalar dt) noexcept {
         good = std::isfinite(energy);
         if (good) {
           m_energy_reference = energy;
-          m_start_energy = energy;
           m_external_work = -work;  // added back below: the reference already holds it
           m_reference_stale = false;
         }
