@@ -66,6 +66,10 @@ struct PenaltyContact {
   Vector3<Scalar> start_force{Vector3<Scalar>::Zero()};
   /// Whether the last implicit step took this contact into its solve (it penetrated at the start).
   bool in_solve{false};
+  /// Once in an implicit step's solve, stays in it for the rest of the step, however deep the
+  /// step's contact passes find it (ForceModel::update_contact_set). collision::ContactSolver sets
+  /// it on the face contact's vertices (ContactOptions::face_contact).
+  bool stays_in_solve{false};
   // The implicit step's linearisation (ForceModel::prepare_implicit): the penetration it was
   // linearised at and the blocks.
   Scalar solve_depth{0};

@@ -786,8 +786,11 @@ bool ForceModel<Scalar>::update_contact_set(const SphereModel<Scalar>& model, co
     if (c.other >= 0) continue;  // part contacts keep the start's set (see the header)
     // A contact that did not penetrate at the step's start (a near contact) and joined a pass
     // stays for the rest of the step: its linear law, damping included, stops the sphere short of
-    // the surface, and dropping it again would let the next pass carry the sphere in.
-    const bool joined = c.in_solve && !(c.solve_depth > Scalar(0));
+    // the surface, and dropping it again would let the next pass carry the sphere in. So does any
+    // contact marked stays_in_solve: a face contact's vertex, whose law sums samples that switch
+    // on and off along its faces; when those could leave between passes, the last pass was often
+    // solved with a set that threw the surface (docs/physics.md section 8).
+    const bool joined = c.in_solve && (c.stays_in_solve || !(c.solve_depth > Scalar(0)));
     const bool in =
         joined ||
         detail::contact_depth(c, x_end, detail::surface_advance(c, m_contact_time + h)) > Scalar(0);

@@ -494,6 +494,7 @@ void ContactSolver<Scalar>::detect(const SphereModel<Scalar>& model, Emit&& emit
         pc.friction_speed = m_options.friction_speed;
         pc.surface_velocity = Vector3<Scalar>(a[8], a[9], a[10]) / a[4];
         pc.node_start = x.row(j).transpose();
+        pc.stays_in_solve = true;
         Scalar fn;
         Vector3<Scalar> slip;
         pc.force = fsm::detail::contact_force(pc, xp, vp, Scalar(0), fn, slip);
