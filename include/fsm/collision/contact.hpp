@@ -104,8 +104,9 @@ struct ContactOptions {
   /// gets one PenaltyContact per instrument: the sum of its samples' laws. Vertices not on a
   /// boundary face (inside, or exposed by a cut) still meet instruments at their centres.
   /// For smooth instruments (spheres, capsules): against a flat end's rim or a box's edge the
-  /// triangles that straddle the edge must clear it, which stiffens the contact and, at 1.5 mm
-  /// spacing and below, makes steps diverge (docs/physics.md section 8); use the vertices there.
+  /// triangles that straddle the edge must clear it, which stiffens the contact and lets vertices
+  /// sink under the edge (docs/physics.md section 8); use the vertices there. Each vertex's
+  /// contact stays in an implicit step's solve once in it (PenaltyContact::stays_in_solve).
   bool face_contact{false};
   /// Instrument contacts are also detected, at zero force, for spheres within this fraction of
   /// their radius outside the instrument. Such a near contact joins the implicit step's solve in a
