@@ -628,6 +628,21 @@ TEST(ContactSolver, BuriedLightPartSettlesImplicitlyAndIsCappedExplicitly) {
   EXPECT_LT(espeed, 0.1);
 }
 
+// A W x W x H block of h lattice cells (tetrahedra), its bottom fixed, on the continuum law at
+// nu = 0.45.
+SphereModel<double> continuum_block(double W, double H, double h) {
+  Material<double> mat = tissue<double>();
+  mat.poisson_ratio = 0.45;
+  SphereModel<double> m;
+  const Index r = m.add_region("block", mat);
+  const int c = int(std::lround(W / h)), cz = int(std::lround(H / h));
+  add_tetrahedral_part(m, make_cube_lattice(V3(0, 0, 0), Eigen::Vector3i(c, c, cz), h), r, h / 2);
+  for (Index i = 0; i < m.num_nodes(); ++i)
+    if (m.rest_positions()(i, 2) < 1e-9) m.set_fixed(i);
+  m.set_region_law(r, ForceLaw::continuum);
+  return m;
+}
+
 // Contact that holds at every resolution: a rigid ball (R = 5 mm, frictionless) pressed 1 mm into
 // a 12 x 12 x 6 mm block (continuum law, E = 13.15 kPa, nu = 0.45, bottom fixed) and held, at
 // lattice spacings 3, 2, 1.5 and 1 mm, implicit Euler at 2 ms. The force must converge as the
@@ -640,15 +655,7 @@ TEST(ContactSolver, BallForceConvergesAsTheSpacingShrinks) {
   std::vector<double> force;
   for (const double h : {0.003, 0.002, 0.0015, 0.001}) {
     SCOPED_TRACE(h);
-    Material<double> mat = tissue<double>();
-    mat.poisson_ratio = 0.45;
-    SphereModel<double> m;
-    const Index r = m.add_region("block", mat);
-    const int c = int(std::lround(W / h)), cz = int(std::lround(H / h));
-    add_tetrahedral_part(m, make_cube_lattice(V3(0, 0, 0), Eigen::Vector3i(c, c, cz), h), r, h / 2);
-    for (Index i = 0; i < m.num_nodes(); ++i)
-      if (m.rest_positions()(i, 2) < 1e-9) m.set_fixed(i);
-    m.set_region_law(r, ForceLaw::continuum);
+    const SphereModel<double> m = continuum_block(W, H, h);
     Simulation<double>::Options o;
     o.forces.gravity.setZero();
     Simulation<double> sim(m, o);
@@ -774,14 +781,7 @@ TEST(ContactSolver, FaceContactForceIsContinuousAsTheProbeSlides) {
 TEST(ContactSolver, FaceContactHoldsUnderAFlatEndAtFineSpacing) {
   const double W = 0.012, H = 0.005, h = 0.001, D = 0.001, dt = 1e-3;
   const int load = 250;
-  Material<double> mat = tissue<double>();
-  mat.poisson_ratio = 0.45;
-  SphereModel<double> m;
-  const Index r = m.add_region("block", mat);
-  add_tetrahedral_part(m, make_cube_lattice(V3(0, 0, 0), Eigen::Vector3i(12, 12, 5), h), r, h / 2);
-  for (Index i = 0; i < m.num_nodes(); ++i)
-    if (m.rest_positions()(i, 2) < 1e-9) m.set_fixed(i);
-  m.set_region_law(r, ForceLaw::continuum);
+  const SphereModel<double> m = continuum_block(W, H, h);
   Simulation<double>::Options o;
   o.forces.gravity.setZero();
   Simulation<double> sim(m, o);
