@@ -612,7 +612,9 @@ TEST(Integrators, ConjugateGradientNeverStopsOnANegativeWeightedResidual) {
   const auto [exact_ok, exact] = run(IE::Solver::eigen_ldlt);
   ASSERT_TRUE(exact_ok);
   const auto [cg_ok, cg] = run(IE::Solver::conjugate_gradient);
-  if (cg_ok) EXPECT_TRUE(matrices_near(cg, exact, 1e-6)) << cg << "\n" << exact;
+  if (cg_ok) {
+    EXPECT_TRUE(matrices_near(cg, exact, 1e-6)) << cg << "\n" << exact;
+  }
 }
 
 }  // namespace
