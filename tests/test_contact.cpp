@@ -777,7 +777,8 @@ TEST(ContactSolver, FaceContactForceIsContinuousAsTheProbeSlides) {
 // tetrahedra on the continuum law, implicit: every step is accepted. A face contact's vertex sums
 // samples that switch on and off along its faces; while such contacts could leave the solve
 // between contact passes, steps threw the surface and were rolled back (PenaltyContact::
-// stays_in_solve; on the cylindrical specimen of docs/validation.md, 98 of 1,000 steps).
+// stays_in_solve; before it, the sharp cylinder on docs/validation.md's cylindrical specimen at
+// 1,536 spheres rolled back 98 of 1,000 steps).
 TEST(ContactSolver, FaceContactHoldsUnderAFlatEndAtFineSpacing) {
   const double W = 0.012, H = 0.005, h = 0.001, D = 0.001, dt = 1e-3;
   const int load = 250;

@@ -64,11 +64,14 @@ struct PenaltyContact {
   /// Force on `node` (N) at the start of the step (ForceModel::start_contacts; zero when the
   /// step is implicit, which does not use it).
   Vector3<Scalar> start_force{Vector3<Scalar>::Zero()};
-  /// Whether the last implicit step took this contact into its solve (it penetrated at the start).
+  /// Whether the last implicit step's last contact pass had this contact in its solve (it
+  /// penetrated at the start, or at the end of an earlier pass: ForceModel::update_contact_set).
   bool in_solve{false};
-  /// Once in an implicit step's solve, stays in it for the rest of the step, however deep the
-  /// step's contact passes find it (ForceModel::update_contact_set). collision::ContactSolver sets
-  /// it on the face contact's vertices (ContactOptions::face_contact).
+  /// Once in an implicit step's solve, stays in it for the rest of the step, even when a contact
+  /// pass ends with it outside (ForceModel::update_contact_set): its linear law then pulls for
+  /// the rest of that step. collision::ContactSolver sets it on the face contact's vertices
+  /// (ContactOptions::face_contact), whose depth at detection is positive, so in practice they
+  /// keep the step's first set.
   bool stays_in_solve{false};
   // The implicit step's linearisation (ForceModel::prepare_implicit): the penetration it was
   // linearised at and the blocks.
@@ -360,7 +363,8 @@ class ForceModel {
   /// exactly the instrument contacts that penetrate at the end positions `x_end` (`3|V|`), plus
   /// those that did not penetrate at the start and joined an earlier pass of this step (near
   /// contacts: their damping stops the sphere short of the surface, and dropping them would let
-  /// the next pass carry it in), and returns whether that changed the set (part contacts keep the
+  /// the next pass carry it in) and those marked PenaltyContact::stays_in_solve that were already
+  /// in it, and returns whether that changed the set (part contacts keep the
   /// start's set: parts touching at rest sit at the threshold and would flip every step) (the
   /// step is then solved again with
   /// keep_contact_set, so that the contact law applied is the one of the end state: backward Euler
