@@ -106,7 +106,8 @@ struct ContactOptions {
   /// For smooth instruments (spheres, capsules): against a flat end's rim or a box's edge the
   /// triangles that straddle the edge must clear it, which stiffens the contact and lets vertices
   /// sink under the edge (docs/physics.md section 8); use the vertices there. Each vertex's
-  /// contact stays in an implicit step's solve once in it (PenaltyContact::stays_in_solve).
+  /// contact, and an interior node's, stays in an implicit step's solve once in it
+  /// (PenaltyContact::stays_in_solve).
   bool face_contact{false};
   /// Instrument contacts are also detected, at zero force, for spheres within this fraction of
   /// their radius outside the instrument. Such a near contact joins the implicit step's solve in a

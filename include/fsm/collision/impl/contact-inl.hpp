@@ -469,6 +469,12 @@ void ContactSolver<Scalar>::detect(const SphereModel<Scalar>& model, Emit&& emit
       pc.surface_velocity =
           ins.linear_velocity + ins.angular_velocity.cross(hit->point - ins.pose.position);
       pc.node_start = c;
+      // With face contact on, an interior node of a tetrahedral part that the instrument reaches
+      // (its tissue has folded past the surface vertices, as under a sharp rim) stays in the
+      // solve like the face contacts around it: when it could leave between passes, the last
+      // pass often threw it out of the tissue (docs/physics.md section 8). (Contact radius 0:
+      // a node of an element, with faces on.)
+      pc.stays_in_solve = faces && m_contact_radius[std::size_t(j)] == Scalar(0);
       Scalar fn;
       Vector3<Scalar> slip;
       pc.force = fsm::detail::contact_force(pc, xp, vp, Scalar(0), fn, slip);
