@@ -169,7 +169,7 @@ int main(int argc, char** argv) {
     diverged_before = diverged;  // while sagging and pressing
     diverged = recovered = 0;    // count the timed steps only
     std::vector<double> t(std::size_t(steps), 0.0);
-    long iterations = 0, on_pool = 0;
+    long iterations = 0, on_pool = 0, unconverged = 0;
     Index probe_contacts = 0;
     for (int s = 0; s < steps; ++s) {
       on_pool += sim.uses_pool() ? 1 : 0;
@@ -178,6 +178,7 @@ int main(int argc, char** argv) {
       t[std::size_t(s)] =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       iterations += r.solver_iterations;
+      unconverged += r.unconverged_solves;
     }
     for (Index k = 0; k < contacts.num_contacts(); ++k)
       if (contacts.contacts()[k].instrument >= 0) ++probe_contacts;
@@ -197,6 +198,7 @@ int main(int argc, char** argv) {
           "\"law\": \"%s\", \"threads\": %d, \"tolerance\": %g, \"probe\": %s, "
           "\"probe_contacts\": %d, \"contacts\": %d, \"steps\": %d, \"mean_us\": %.1f, "
           "\"p50_us\": %.1f, \"p99_us\": %.1f, \"max_us\": %.1f, \"cg_iterations\": %.2f, "
+          "\"unconverged_solves\": %ld, "
           "\"recovered\": %ld, \"diverged\": %ld, \"diverged_before_timing\": %ld, "
           "\"element_tangent_quality\": %g, \"element_tangents\": %d, \"fluttered\": %d, "
           "\"flutter_guard\": %s, \"extrapolated_warm_start\": %s, \"reuse_end_forces\": %s, "
@@ -205,8 +207,9 @@ int main(int argc, char** argv) {
           path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
           int(sim.model().num_tetrahedra()), law.c_str(), threads, tolerance,
           probe ? "true" : "false", int(probe_contacts), int(contacts.num_contacts()), steps,
-          mean * 1e6, pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it, recovered, diverged,
-          diverged_before, element_tangent_quality, int(sim.forces().continuum_element_tangents()),
+          mean * 1e6, pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it, unconverged, recovered,
+          diverged, diverged_before, element_tangent_quality,
+          int(sim.forces().continuum_element_tangents()),
           int(sim.forces().continuum_fluttered_elements()), flutter_guard ? "true" : "false",
           extrapolate ? "true" : "false", reuse ? "true" : "false", gravity_y ? "-y" : "-z",
           smoothing.c_str(), adaptive ? "true" : "false", double(on_pool) / double(steps),

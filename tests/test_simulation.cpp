@@ -253,6 +253,41 @@ TEST(Simulation, SwappingIntegratorsChangesOnlyTheScheme) {
   EXPECT_EQ(sim.step(1e-4).status, StepStatus::ok);
 }
 
+// A linear solve cut off at its iteration cap is reported (StepReport::unconverged_solves), not
+// passed off as converged. A block sagging under gravity, implicit Euler at 5 ms: with CG capped
+// at 2 iterations to 1e-12 every sub-step's solve is cut off (rolled-back attempts included: the
+// divergence checks judge the state, and may reject it); with the defaults none is.
+TEST(Simulation, ReportsALinearSolveCutOffAtItsCap) {
+  struct Counts {
+    int unconverged = 0, advanced = 0, iterations = 0, substeps = 0;
+  };
+  auto run = [](int cap, double tolerance) {
+    Simulation<double> sim(block<double>({3, 3, 3}, 0.005),
+                           options<double>("implicit_euler", true));
+    ImplicitEulerIntegrator<double>::Options io;
+    io.max_iterations = cap;
+    io.tolerance = tolerance;
+    sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
+    Counts c;
+    for (int s = 0; s < 20; ++s) {
+      const StepReport<double> r = sim.step(5e-3);
+      c.unconverged += r.unconverged_solves;
+      c.advanced += r.advanced() ? 1 : 0;
+      c.iterations += r.solver_iterations;
+      c.substeps += r.substeps;
+    }
+    return c;
+  };
+  const Counts cut = run(2, 1e-12);
+  EXPECT_GT(cut.advanced, 10);  // most truncated steps pass the checks
+  EXPECT_EQ(cut.unconverged, cut.substeps);
+  EXPECT_EQ(cut.iterations, 2 * cut.substeps);
+  const Counts full = run(200, 1e-6);
+  EXPECT_EQ(full.advanced, 20);
+  EXPECT_EQ(full.unconverged, 0);
+  EXPECT_GT(full.iterations, 2 * full.substeps);
+}
+
 TEST(Simulation, ResetReturnsToRest) {
   Simulation<double> sim(block<double>({2, 2, 2}, 0.005), options<double>("heun", true));
   sim.external_forces()(3, 0) = 0.1;

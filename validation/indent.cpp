@@ -231,7 +231,7 @@ int run(const Args& a) {
   tool.pose.position = Vector3<double>(cx, cy, start_z);
   tool.linear_velocity = Vector3<double>(0, 0, -a.speed);
   const Index tool_index = contact ? contacts.add_instrument(tool) : Index(-1);
-  long softened = 0, inverted_steps = 0, iterations = 0;
+  long softened = 0, inverted_steps = 0, iterations = 0, unconverged = 0;
   // How deep any sphere centre got inside the tool over the run (m): the contact must hold the
   // tissue out (a penalty leaves a small penetration, a fixed share of the deformation).
   double max_penetration = 0;
@@ -309,6 +309,7 @@ int run(const Args& a) {
     }
     inverted_steps += r.inverted_elements > 0;
     iterations += r.solver_iterations;
+    unconverged += r.unconverged_solves;
     volume_seconds += std::chrono::duration<double>(t1 - t0).count();
     step_seconds += std::chrono::duration<double>(t2 - t0).count();
     step_times.push_back(std::chrono::duration<double>(t2 - t0).count());
@@ -350,7 +351,8 @@ int run(const Args& a) {
       "\"omega_volume\": %.6g, \"stable_dt\": %s, \"mean_edge_m\": %.6g, "
       "\"final_force_N\": %s, \"samples\": %zu, \"law\": \"%s\", \"nu\": %.4g, "
       "\"softened_contacts\": %ld, \"inverted_steps\": %ld, \"max_penetration_m\": %s, "
-      "\"mean_iterations\": %.4g, \"smoothing\": \"%s\", \"element_share\": %.4g}\n",
+      "\"mean_iterations\": %.4g, \"unconverged_solves\": %ld, \"smoothing\": \"%s\", "
+      "\"element_share\": %.4g}\n",
       a.scene.c_str(), to_string(tissue.parts[0].topology), a.load_case.c_str(),
       a.integrator.c_str(), dt, sim.model().num_nodes(), sim.model().num_links(), q.tetrahedra,
       sim.model().num_fixed(), driven.size(), a.stiffness_scale, kappa, a.poisson, steps, diverged,
@@ -360,7 +362,7 @@ int run(const Args& a) {
       json_number(sample_f.back()).c_str(), sample_d.size(), a.law.c_str(),
       a.law == "continuum" ? a.nu : 0.0, softened, inverted_steps,
       json_number(contact ? max_penetration : std::nan("")).c_str(),
-      double(iterations) / double(std::max(steps, 1L)), a.smoothing.c_str(),
+      double(iterations) / double(std::max(steps, 1L)), unconverged, a.smoothing.c_str(),
       a.smoothing == "element" ? 1.0 : a.element_share);
   return finite && diverged == 0 ? 0 : 3;
 }

@@ -50,6 +50,19 @@ def test_integrators_by_name_and_by_class(block):
         fsm.ImplicitEulerIntegrator(preconditioner="ilu")
 
 
+def test_a_solve_cut_off_at_its_cap_is_reported(block):
+    """StepReport.unconverged_solves counts the sub-steps whose CG stopped at max_iterations short
+    of its tolerance; converged solves count none."""
+    capped = fsm.Simulation(block, integrator=fsm.ImplicitEulerIntegrator(
+        tolerance=1e-12, max_iterations=2))
+    full = fsm.Simulation(block, integrator=fsm.ImplicitEulerIntegrator())
+    for _ in range(10):
+        r = capped.step(5e-3)  # the checks may reject a truncated step: every attempt counts
+        assert r.solver_iterations == 2 * r.substeps and r.unconverged_solves == r.substeps
+        r = full.step(5e-3)
+        assert r.advanced and r.unconverged_solves == 0
+
+
 def test_preconditioners_solve_the_same_step(block):
     """Jacobi and block-Jacobi CG, with and without the extrapolated warm start, reach the same
     states (they change only the path to the solution) and the exact LDLT solve's, to the CG

@@ -78,6 +78,7 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg(SphereModel<Scalar>& 
   // Contacts: solve with those penetrating at the start, then again (warm-started) with those
   // penetrating at the end while that set changes, at most max_contact_passes solves.
   int total = 0;
+  bool converged = true;
   for (int pass = 0;; ++pass) {
     forces.prepare_implicit(model, dt, form, m_blocks.data(), m_rhs, m_diag, pass > 0);
     if (m_options.preconditioner == Preconditioner::block_jacobi) {
@@ -107,7 +108,8 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg(SphereModel<Scalar>& 
     }
     const IntegratorResult r = solve_cg_pass(model, forces);
     total += r.iterations;
-    if (!r.ok) return {false, total};
+    converged = converged && r.converged;
+    if (!r.ok) return {false, total, converged};
     if (forces.num_contacts() == 0 || pass + 1 >= m_options.max_contact_passes) break;
     m_x_end = model.positions() + dt * (model.velocities() + m_dv);
     if (!forces.update_contact_set(model, m_x_end.data(), dt)) break;
@@ -117,7 +119,7 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg(SphereModel<Scalar>& 
   auto v = model.velocities();
   v += m_dv;
   x += dt * v;
-  return {true, total};
+  return {true, total, converged};
 }
 
 template <typename Scalar>
@@ -149,7 +151,7 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg_pass(
     return weighted && r_z > Scalar(0) ? r_z <= target2 : m_r.norm() <= plain_target;
   };
   int it = 0;
-  bool ok = true;
+  bool ok = true, reached = true;
   if (!converged(rz) || !std::isfinite(rz)) {
     m_p = m_z;
     for (it = 1; it <= m_options.max_iterations; ++it) {
@@ -168,13 +170,14 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg_pass(
       m_p = m_z + (rz_new / rz) * m_p;
       rz = rz_new;
     }
+    reached = it <= m_options.max_iterations;  // else the loop ran out at its cap
     it = std::min(it, m_options.max_iterations);
   }
   if (!ok || !m_dv.allFinite()) {
     reset();
-    return {false, it};
+    return {false, it, reached};
   }
-  return {true, it};
+  return {true, it, reached};
 }
 
 template <typename Scalar>

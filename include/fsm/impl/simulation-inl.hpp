@@ -424,12 +424,13 @@ StepReport<Scalar> Simulation<Scalar>::advance(Scalar dt) noexcept {
     const int n = 1 << level;
     const Scalar h = dt / Scalar(n);
     bool good = true;
-    int iterations = 0;
+    int iterations = 0, unconverged = 0;
     for (int s = 0; s < n && good; ++s) {
       // The instruments' surfaces move through the step: contact time at this substep's start.
       m_forces.set_contact_time(contact_time + Scalar(s) * h);
       const IntegratorResult r = m_integrator->step(m_model, m_forces, h);
       iterations += r.iterations;
+      unconverged += r.converged ? 0 : 1;
       good = r.ok;
     }
     m_forces.set_contact_time(contact_time + dt);
@@ -464,6 +465,7 @@ StepReport<Scalar> Simulation<Scalar>::advance(Scalar dt) noexcept {
     }
     report.substeps += n;
     report.solver_iterations += iterations;
+    report.unconverged_solves += unconverged;
     if (good) {
       m_external_work += work;
       if (policy.check_energy) m_start_energy = energy;
