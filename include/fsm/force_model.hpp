@@ -70,9 +70,10 @@ struct PenaltyContact {
   /// Once in an implicit step's solve, stays in it for the rest of the step, even when a contact
   /// pass ends with it outside (ForceModel::update_contact_set): its linear law then pulls for
   /// the rest of that step. collision::ContactSolver sets it on the face contact's vertices
-  /// (ContactOptions::face_contact), whose depth at detection is positive, so in practice they
-  /// keep the step's first set, and, with face contact on, on the instrument contacts of the
-  /// tetrahedral parts' interior nodes (reached once the tissue folds past the surface).
+  /// (ContactOptions::face_contact; their depth at detection is positive, so in practice they
+  /// keep the step's first set) and, with face contact on, on the instrument contacts of the
+  /// tetrahedral parts' nodes that are not face vertices (interior nodes, reached once the
+  /// tissue folds past the surface; a near one of those may still join in a later pass).
   bool stays_in_solve{false};
   // The implicit step's linearisation (ForceModel::prepare_implicit): the penetration it was
   // linearised at and the blocks.

@@ -19,8 +19,9 @@ namespace fsm {
 struct IntegratorResult {
   bool ok{true};      ///< False when the scheme could not produce a state (solver breakdown).
   int iterations{0};  ///< Linear-solver iterations (implicit schemes), else 0.
-  /// False when a linear solve stopped at its iteration cap short of its tolerance: the state
-  /// was still produced (a real-time budget takes the truncated solve), but it is less accurate.
+  /// False when a linear solve (any contact pass's) stopped at its iteration cap short of its
+  /// tolerance: the state was still produced when `ok` (a real-time budget takes the truncated
+  /// solve), but it is less accurate.
   bool converged{true};
 };
 

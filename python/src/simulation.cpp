@@ -43,8 +43,8 @@ void define_simulation(py::module_& m) {
       .def_readonly("solver_iterations", &R::solver_iterations,
                     "linear-solver iterations (CG) summed over sub-steps; 0 for explicit schemes")
       .def_readonly("unconverged_solves", &R::unconverged_solves,
-                    "sub-steps whose linear solve stopped at its iteration cap short of its "
-                    "tolerance (taken anyway if the divergence checks passed)")
+                    "sub-steps with a linear solve (any contact pass) stopped at its iteration "
+                    "cap short of its tolerance (taken anyway if the divergence checks passed)")
       .def_readonly("energy", &R::energy, "J after the step (nan when not checked)")
       .def_readonly("inverted_elements", &R::inverted_elements,
                     "continuum elements with J <= 0 after the step (0 without the law)")

@@ -789,7 +789,8 @@ bool ForceModel<Scalar>::update_contact_set(const SphereModel<Scalar>& model, co
     // the surface, and dropping it again would let the next pass carry the sphere in. So does any
     // contact marked stays_in_solve: a face contact's vertex, whose law sums samples that switch
     // on and off along its faces; when those could leave between passes, the last pass was often
-    // solved with a set that threw the surface (docs/physics.md section 8).
+    // solved with a set that threw the surface; and, with face contact on, a tetrahedral node
+    // that is not a face vertex (docs/physics.md section 8).
     const bool joined = c.in_solve && (c.stays_in_solve || !(c.solve_depth > Scalar(0)));
     const bool in =
         joined ||

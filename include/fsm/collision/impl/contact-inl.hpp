@@ -469,11 +469,11 @@ void ContactSolver<Scalar>::detect(const SphereModel<Scalar>& model, Emit&& emit
       pc.surface_velocity =
           ins.linear_velocity + ins.angular_velocity.cross(hit->point - ins.pose.position);
       pc.node_start = c;
-      // With face contact on, an interior node of a tetrahedral part that the instrument reaches
-      // (its tissue has folded past the surface vertices, as under a sharp rim) stays in the
-      // solve like the face contacts around it: when it could leave between passes, the last
-      // pass often threw it out of the tissue (docs/physics.md section 8). (Contact radius 0:
-      // a node of an element, with faces on.)
+      // With face contact on, a node of a tetrahedral part's elements that is not a face vertex
+      // (an interior node the tissue has folded onto the tool, as under a sharp rim; or one a cut
+      // exposed since the faces were built) stays in the solve like the face contacts around
+      // it: when it could leave between passes, the last pass often threw it out of the tissue
+      // (docs/physics.md section 8). (Contact radius 0: a node of an element, with faces on.)
       pc.stays_in_solve = faces && m_contact_radius[std::size_t(j)] == Scalar(0);
       Scalar fn;
       Vector3<Scalar> slip;
