@@ -38,8 +38,9 @@ struct StepReport {
   int substeps{0};           ///< Integrator steps taken (2^k after k halvings).
   int solver_iterations{0};  ///< Summed linear-solver iterations (implicit schemes).
   /// Integrator steps (sub-steps, rejected ones included) with a linear solve (in any contact
-  /// pass) that stopped at its iteration cap (ImplicitEulerIntegrator::Options::max_iterations) short of its tolerance. The
-  /// step was still taken if the divergence checks passed; it is less accurate than asked.
+  /// pass) that stopped at its iteration cap (ImplicitEulerIntegrator::Options::max_iterations)
+  /// short of its tolerance. The step was still taken if the divergence checks passed; it is less
+  /// accurate than asked.
   int unconverged_solves{0};
   /// Kinetic + elastic + gravitational energy after the step (J); NaN when not checked.
   Scalar energy{std::numeric_limits<Scalar>::quiet_NaN()};
