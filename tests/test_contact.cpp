@@ -841,6 +841,18 @@ TEST(ContactSolver, InteriorNodeReachedWithFaceContactStaysInTheSolve) {
       EXPECT_EQ(c.stays_in_solve, faces);
     }
     EXPECT_EQ(found, 1);
+    // What the flag does: a step takes the contact into its solve; a later pass whose end state
+    // has the node 1 mm clear of the tool keeps it there with face contact on, drops it without.
+    ASSERT_TRUE(sim.step(1e-3).advanced());
+    Positions<double> x_end = sim.model().positions();
+    x_end(inner, 2) -= 0.001;
+    for (Index k = 0; k < sim.forces().num_contacts(); ++k)
+      if (sim.forces().contacts()[k].node == inner)
+        ASSERT_TRUE(sim.forces().contacts()[k].in_solve);
+    sim.forces().update_contact_set(sim.model(), x_end.data(), 1e-3);
+    for (Index k = 0; k < sim.forces().num_contacts(); ++k)
+      if (sim.forces().contacts()[k].node == inner)
+        EXPECT_EQ(sim.forces().contacts()[k].in_solve, faces);
   }
 }
 
