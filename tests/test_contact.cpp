@@ -846,13 +846,17 @@ TEST(ContactSolver, InteriorNodeReachedWithFaceContactStaysInTheSolve) {
     ASSERT_TRUE(sim.step(1e-3).advanced());
     Positions<double> x_end = sim.model().positions();
     x_end(inner, 2) -= 0.001;
-    for (Index k = 0; k < sim.forces().num_contacts(); ++k)
-      if (sim.forces().contacts()[k].node == inner)
+    for (Index k = 0; k < sim.forces().num_contacts(); ++k) {
+      if (sim.forces().contacts()[k].node == inner) {
         ASSERT_TRUE(sim.forces().contacts()[k].in_solve);
+      }
+    }
     sim.forces().update_contact_set(sim.model(), x_end.data(), 1e-3);
-    for (Index k = 0; k < sim.forces().num_contacts(); ++k)
-      if (sim.forces().contacts()[k].node == inner)
+    for (Index k = 0; k < sim.forces().num_contacts(); ++k) {
+      if (sim.forces().contacts()[k].node == inner) {
         EXPECT_EQ(sim.forces().contacts()[k].in_solve, faces);
+      }
+    }
   }
 }
 

@@ -224,6 +224,31 @@ TEST(ServoLoop, WatchdogZeroesTheForceDuringAStall) {
   EXPECT_GT(log[log.size() - 2].second.norm(), 0.0);
 }
 
+// ServoStats::unconverged_solves sums the steps' StepReport::unconverged_solves: with CG capped at
+// 2 iterations to 1e-12 every step's solve is cut off (and the run is counted); with the default
+// solver none is.
+TEST(ServoLoop, StatsCountLinearSolvesCutOffAtTheirCap) {
+  auto run = [](bool capped) {
+    Scene s;
+    if (capped) {
+      ImplicitEulerIntegrator<double>::Options io;
+      io.max_iterations = 2;
+      io.tolerance = 1e-12;
+      s.sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
+    }
+    ScriptedHapticDevice dev(probe_script());
+    ServoLoop loop(s.sim, s.contacts, s.tool, dev, ServoOptions{});
+    loop.run_fast(0.3);
+    return loop.stats();
+  };
+  const ServoStats capped = run(true);
+  EXPECT_GT(capped.steps, 100u);
+  EXPECT_GE(capped.unconverged_solves, capped.steps - capped.diverged_steps);
+  const ServoStats plain = run(false);
+  EXPECT_GT(plain.steps, 100u);
+  EXPECT_EQ(plain.unconverged_solves, 0u);
+}
+
 TEST(ServoLoop, DivergingSimulationTripsToZeroForce) {
   // Heun at 1 ms on a block 500 times stiffer than tissue: far beyond its stable step.
   Scene s("heun", 13150 * 500);

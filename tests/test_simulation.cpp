@@ -288,6 +288,44 @@ TEST(Simulation, ReportsALinearSolveCutOffAtItsCap) {
   EXPECT_GT(full.iterations, 2 * full.substeps);
 }
 
+// StepReport::substeps counts the integrator steps that ran. An integrator whose solver breaks
+// down at its 1st and 2nd calls (the whole step, then the first half step): the first halving
+// stops after its first half step, the second runs its four quarter steps. 1 + 1 + 4 = 6 ran;
+// counting every level's 2^k would give 7.
+TEST(Simulation, SubstepsCountTheIntegratorStepsThatRan) {
+  class BreaksTwice final : public Integrator<double> {
+   public:
+    int calls = 0;
+    HeunIntegrator<double> heun;
+    std::string_view name() const noexcept override { return "breaks_twice"; }
+    int order() const noexcept override { return heun.order(); }
+    void prepare(const SphereModel<double>& model) override { heun.prepare(model); }
+    IntegratorResult step(SphereModel<double>& model, ForceModel<double>& forces,
+                          double dt) noexcept override {
+      if (calls++ < 2) return IntegratorResult{false, 0, true};
+      return heun.step(model, forces, dt);
+    }
+    std::unique_ptr<Integrator<double>> clone() const override {
+      return std::make_unique<BreaksTwice>(*this);
+    }
+    double stable_time_step(const SpectralBound<double>& b) const noexcept override {
+      return heun.stable_time_step(b);
+    }
+  };
+  auto o = options<double>("heun", true);
+  o.divergence.max_substep_halvings = 3;
+  Simulation<double> sim(block<double>({2, 2, 2}, 0.005), o);
+  auto integrator = std::make_unique<BreaksTwice>();
+  const BreaksTwice* counter = integrator.get();
+  sim.set_integrator(std::move(integrator));
+  const StepReport<double> r = sim.step(1e-5);
+  EXPECT_EQ(r.status, StepStatus::recovered);
+  EXPECT_EQ(counter->calls, 6);
+  EXPECT_EQ(r.substeps, 6);
+  // A step that passes at once: one.
+  EXPECT_EQ(sim.step(1e-5).substeps, 1);
+}
+
 TEST(Simulation, ResetReturnsToRest) {
   Simulation<double> sim(block<double>({2, 2, 2}, 0.005), options<double>("heun", true));
   sim.external_forces()(3, 0) = 0.1;

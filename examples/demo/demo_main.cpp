@@ -385,7 +385,8 @@ int main(int argc, char** argv) {
         "%.1f, "
         "\"servo_period_error_p99_us\": %.1f, \"step_p50_us\": %.1f, \"step_p99_us\": %.1f, "
         "\"step_max_us\": %.1f, "
-        "\"watchdog_trips\": %zu, \"diverged_steps\": %zu, \"peak_instrument_force_N\": %.4f, "
+        "\"watchdog_trips\": %zu, \"diverged_steps\": %zu, \"unconverged_solves\": %zu, "
+        "\"peak_instrument_force_N\": %.4f, "
         "\"peak_commanded_force_N\": %.4f, \"stress_processes\": %d, \"realtime_priority\": %d, "
         "\"realtime\": %s, \"threading\": \"%s\", \"law\": \"%s\", \"exported_states\": %zu, "
         "\"out\": \"%s\"}",
@@ -393,9 +394,10 @@ int main(int argc, char** argv) {
         int(model.skin.num_vertices()), snap.time, frame_hz.size(), fmin, fmed, fmax,
         skin_mean * 1e6, st.ticks, st.missed_deadlines, st.period_p50 * 1e6, st.period_p99 * 1e6,
         st.period_max * 1e6, st.period_error_p99 * 1e6, st.step_p50 * 1e6, st.step_p99 * 1e6,
-        st.step_max * 1e6, st.watchdog_trips, st.diverged_steps, peak, st.peak_force,
-        stress.count(), args.realtime, st.realtime ? "true" : "false", args.threading.c_str(),
-        law.c_str(), exporter ? exporter->states() : std::size_t(0), args.out.c_str());
+        st.step_max * 1e6, st.watchdog_trips, st.diverged_steps, st.unconverged_solves, peak,
+        st.peak_force, stress.count(), args.realtime, st.realtime ? "true" : "false",
+        args.threading.c_str(), law.c_str(), exporter ? exporter->states() : std::size_t(0),
+        args.out.c_str());
     {
       std::ofstream f(args.out + "/stats.json");
       f << json << '\n';

@@ -421,14 +421,15 @@ int run_myomectomy(const TissueModel<double>& model, const ScenarioOptions& opt)
       "\"peak_commanded_force_N\": %.3f, \"servo_ticks\": %zu, \"servo_missed_deadlines\": %zu, "
       "\"servo_period_p99_us\": %.1f, \"step_p50_us\": %.1f, \"step_p99_us\": %.1f, "
       "\"step_max_us\": %.1f, \"watchdog_trips\": %zu, \"diverged_steps\": %zu, "
-      "\"stress_processes\": %d, \"law\": \"%s\", \"out\": \"%s\"}",
+      "\"unconverged_solves\": %zu, \"stress_processes\": %d, \"law\": \"%s\", \"out\": \"%s\"}",
       model.name.c_str(), int(model.spheres.num_nodes()), int(held_body),
       int(action.capsule_links()), opt.capsule_tear, int(action.cut().links_cut),
       int(action.cut().tetrahedra_cut), int(action.capsule_after_incision()),
       int(action.torn_links()), int(action.grasped()), freed ? "true" : "false", action.free_time(),
       peak, st.peak_force, st.ticks, st.missed_deadlines, st.period_p99 * 1e6,
       percentile(steps, 0.5) * 1e6, percentile(steps, 0.99) * 1e6, st.step_max * 1e6,
-      st.watchdog_trips, st.diverged_steps, stress.count(), law.c_str(), opt.out.c_str());
+      st.watchdog_trips, st.diverged_steps, st.unconverged_solves, stress.count(), law.c_str(),
+      opt.out.c_str());
   {
     std::ofstream out(opt.out + "/stats.json");
     out << json << '\n';

@@ -35,7 +35,10 @@ enum class StepStatus {
 template <typename Scalar>
 struct StepReport {
   StepStatus status{StepStatus::ok};
-  int substeps{0};           ///< Integrator steps taken (2^k after k halvings).
+  /// Integrator steps run, rejected attempts included: 1 for a step that passed at once; with
+  /// halvings, the sub-steps run at every level tried (1 + 2 + ... + 2^k when the k-th halving
+  /// passed and no solver broke down; a level stops at a sub-step whose solver broke down).
+  int substeps{0};
   int solver_iterations{0};  ///< Summed linear-solver iterations (implicit schemes).
   /// Integrator steps (sub-steps, rejected ones included) with a linear solve (in any contact
   /// pass) that stopped at its iteration cap (ImplicitEulerIntegrator::Options::max_iterations)

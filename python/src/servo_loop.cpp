@@ -49,6 +49,8 @@ for the loop's threads where the system allows), realtime_spin (s).)");
       .def_readonly("step_max", &fh::ServoStats::step_max, "s")
       .def_readonly("watchdog_trips", &fh::ServoStats::watchdog_trips, "times the force was zeroed")
       .def_readonly("diverged_steps", &fh::ServoStats::diverged_steps, "steps rolled back")
+      .def_readonly("unconverged_solves", &fh::ServoStats::unconverged_solves,
+                    "integrator steps whose linear solve stopped at its iteration cap")
       .def_readonly("peak_force", &fh::ServoStats::peak_force, "N")
       .def_readonly("realtime", &fh::ServoStats::realtime,
                     "every thread that asked for real-time scheduling got it");

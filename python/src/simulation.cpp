@@ -39,7 +39,10 @@ void define_simulation(py::module_& m) {
       .def_property_readonly(
           "status", [](const R& r) { return std::string(to_string(r.status)); },
           "'ok', 'recovered', 'diverged' or 'invalid_time_step'")
-      .def_readonly("substeps", &R::substeps, "sub-steps taken (2^k after k halvings; 1 normally)")
+      .def_readonly(
+          "substeps", &R::substeps,
+          "integrator steps run, rejected attempts included (1 normally; 1 + 2 + ... + 2^k after k "
+          "halvings, fewer where a solver broke down)")
       .def_readonly("solver_iterations", &R::solver_iterations,
                     "linear-solver iterations (CG) summed over sub-steps; 0 for explicit schemes")
       .def_readonly("unconverged_solves", &R::unconverged_solves,

@@ -41,6 +41,7 @@ def test_servo_loop_offline_presses_the_block(block):
     loop.run_fast(0.8, d)
     st = loop.stats()
     assert st.ticks == 800 and st.steps == 800
+    assert st.diverged_steps == 0 and st.unconverged_solves == 0
     f = d.forces()
     assert f[:, 3].max() > 0.01  # pushed up, out of the tissue
     assert np.all(np.isfinite(f))

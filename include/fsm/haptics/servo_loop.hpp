@@ -101,7 +101,10 @@ struct ServoStats {
   double step_p50{0}, step_p99{0}, step_max{0};        ///< simulation step (contacts + step)
   std::size_t watchdog_trips{0};                       ///< times the watchdog zeroed the force
   std::size_t diverged_steps{0};                       ///< steps the simulation rolled back
-  double peak_force{0};                                ///< largest commanded force magnitude (N)
+  /// Integrator steps whose linear solve stopped at its iteration cap short of its tolerance
+  /// (StepReport::unconverged_solves summed over the steps)
+  std::size_t unconverged_solves{0};
+  double peak_force{0};  ///< largest commanded force magnitude (N)
   /// Every loop thread that asked for real-time scheduling (ServoOptions::realtime_priority) got
   /// it; false when none was asked for or the system refused.
   bool realtime{false};
@@ -273,7 +276,8 @@ class ServoLoop {
 
   // Stats (each written by one thread).
   std::vector<float> m_periods, m_step_times;
-  std::atomic<std::size_t> m_ticks{0}, m_steps{0}, m_missed{0}, m_trips{0}, m_diverged{0};
+  std::atomic<std::size_t> m_ticks{0}, m_steps{0}, m_missed{0}, m_trips{0}, m_diverged{0},
+      m_unconverged{0};
   std::atomic<std::size_t> m_healthy_steps{0};
   std::atomic<int> m_rt_asked{0}, m_rt_granted{0};
   std::atomic<double> m_peak{0};

@@ -166,7 +166,7 @@ void ServoLoop::begin(bool local_model) {
   m_rearm_time = 0;
   m_periods.clear();
   m_step_times.clear();
-  m_ticks = m_steps = m_missed = m_trips = m_diverged = 0;
+  m_ticks = m_steps = m_missed = m_trips = m_diverged = m_unconverged = 0;
   m_healthy_steps = 0;
   m_rt_asked = 0;
   m_rt_granted = 0;
@@ -340,6 +340,8 @@ void ServoLoop::physics_step(double t) noexcept {
   if (m_action != nullptr) m_action->before_step(m_sim, ins.pose, m_proxy.velocity, t);
   const StepReport report = m_sim.step(m_period);
   m_contacts.collect(m_sim.forces());
+  if (report.unconverged_solves > 0)
+    m_unconverged.fetch_add(std::size_t(report.unconverged_solves), std::memory_order_relaxed);
   if (m_action != nullptr) m_action_wrench = m_action->wrench(m_sim);  // once per step
   if (!report.advanced()) {
     ++m_diverged;
@@ -542,6 +544,7 @@ ServoStats ServoLoop::stats() const {
   s.missed_deadlines = m_missed;
   s.watchdog_trips = m_trips;
   s.diverged_steps = m_diverged;
+  s.unconverged_solves = m_unconverged;
   s.peak_force = m_peak;
   s.realtime = m_rt_asked.load() > 0 && m_rt_granted.load() == m_rt_asked.load();
   s.period_p50 = percentile(m_periods, 0.5);
