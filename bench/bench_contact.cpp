@@ -3,8 +3,6 @@
 
 #include <benchmark/benchmark.h>
 
-#include <Eigen/IterativeLinearSolvers>
-#include <Eigen/SparseCholesky>
 #include <chrono>
 #include <map>
 #include <random>
@@ -14,6 +12,7 @@
 #include "fsm/collision/contact.hpp"
 #include "fsm_support/model_cache.hpp"
 #include "fsm_support/probe.hpp"
+#include "preconditioners.hpp"
 
 namespace fsm::bench {
 namespace {
@@ -303,102 +302,35 @@ BENCHMARK(BM_UterusImplicitStepWithContact)
 
 // Preconditioners of the implicit step's matrix A = M + h D + h^2 K (assembled at the state of
 // BM_UterusImplicitStepWithContact after 0.3 s of pressing, contacts in), to choose the CG
-// solver's: PCG from zero to |r| <= 1e-6 |b| for a random b, counting iterations, with Jacobi,
-// 3 x 3 block-Jacobi, incomplete Cholesky (Eigen, IC with shift) and sparse Cholesky (Eigen's
-// SimplicialLLT, AMD ordering) factored at rest (no contacts) or at this state. Counters also
-// give the factor's size, its time and one application's (two triangular solves). The timed loop
-// is one sparse product A p (the assembled form; the matrix-free one is in the step benchmark).
-Eigen::SparseMatrix<double> implicit_matrix(const Simulation<double>& sim, double h) {
-  using Sparse = Eigen::SparseMatrix<double>;
-  const auto& forces = sim.forces();
-  const auto& model = sim.model();
-  const Index n = model.num_nodes();
-  const Sparse K = forces.stiffness_matrix(model, JacobianForm::definite);
-  const Sparse D = forces.damping_matrix(model);
-  const auto& fixed = forces.immobile();
-  Sparse A = -h * D - (h * h) * K;
-  A.prune([&](Index r, Index c, const double&) {
-    return !fixed[std::size_t(r / 3)] && !fixed[std::size_t(c / 3)];
-  });
-  std::vector<Eigen::Triplet<double>> diag;
-  for (Index i = 0; i < n; ++i)
-    for (int c = 0; c < 3; ++c)
-      diag.emplace_back(
-          3 * i + c, 3 * i + c,
-          fixed[std::size_t(i)] ? 1.0 : model.masses()[i] * (1 + h * forces.options().drag));
-  Sparse M(3 * n, 3 * n);
-  M.setFromTriplets(diag.begin(), diag.end());
-  A += M;
-  A.makeCompressed();
-  return A;
-}
-
+// solver's (preconditioners.hpp: PCG from zero to |r| <= 1e-6 |b| for a random b with each, the
+// factors' sizes and times). The timed loop is one sparse product A p (the assembled form; the
+// matrix-free one is in the step benchmark).
 void BM_UterusPreconditioners(benchmark::State& state) {
-  using Sparse = Eigen::SparseMatrix<double>;
-  using Vec = Eigen::VectorXd;
-  using Clock = std::chrono::steady_clock;
   PressedUterus u(state.range(0) != 0, ContactOptions<double>().stiffness_ratio);
   Simulation<double>& sim = u.sim;
   const double h = 1e-3;
-  const Sparse A_rest = implicit_matrix(sim, h);  // at rest, before any contact
+  const Eigen::SparseMatrix<double> A_rest = bench::implicit_matrix(sim, h);  // before contact
   u.settle();
   u.solver.compute(sim.model(), sim.forces());
   sim.forces().start_contacts(sim.model());
-  const Sparse A = implicit_matrix(sim, h);
-  const Vec b = Vec::Random(A.rows());
-  auto pcg = [&](const auto& apply_inverse) {
-    Vec x = Vec::Zero(A.rows()), r = b, z = apply_inverse(r), p = z, q;
-    double rz = r.dot(z);
-    int it = 1;
-    for (; it < 1000; ++it) {
-      q = A * p;
-      const double alpha = rz / p.dot(q);
-      x += alpha * p;
-      r -= alpha * q;
-      if (r.norm() <= 1e-6 * b.norm()) break;
-      z = apply_inverse(r);
-      const double rz_new = r.dot(z);
-      p = z + (rz_new / rz) * p;
-      rz = rz_new;
-    }
-    return it;
-  };
-  const Vec d = A.diagonal();
-  state.counters["it_jacobi"] = pcg([&](const Vec& r) -> Vec { return r.cwiseQuotient(d); });
-  std::vector<Eigen::Matrix3d> blocks(std::size_t(A.rows() / 3));
-  for (std::size_t i = 0; i < blocks.size(); ++i)
-    blocks[i] = Eigen::Matrix3d(A.block(3 * Index(i), 3 * Index(i), 3, 3)).inverse();
-  state.counters["it_block_jacobi"] = pcg([&](const Vec& r) -> Vec {
-    Vec z(r.size());
-    for (std::size_t i = 0; i < blocks.size(); ++i)
-      z.segment<3>(3 * Index(i)) = blocks[i] * r.segment<3>(3 * Index(i));
-    return z;
-  });
-  const Eigen::IncompleteCholesky<double> ic(A);
-  state.counters["it_incomplete_cholesky"] = pcg([&](const Vec& r) -> Vec { return ic.solve(r); });
-  const Eigen::SimplicialLLT<Sparse> rest(A_rest);
-  state.counters["it_cholesky_rest"] = pcg([&](const Vec& r) -> Vec { return rest.solve(r); });
-  const auto t0 = Clock::now();
-  const Eigen::SimplicialLLT<Sparse> now(A);
-  const auto t1 = Clock::now();
-  state.counters["it_cholesky_now"] = pcg([&](const Vec& r) -> Vec { return now.solve(r); });
-  Vec y;
-  const auto t2 = Clock::now();
-  for (int k = 0; k < 50; ++k) {
-    y = now.solve(b);
-    benchmark::DoNotOptimize(y.data());
-  }
-  const auto t3 = Clock::now();
+  const Eigen::SparseMatrix<double> A = bench::implicit_matrix(sim, h);
+  const bench::PreconditionerStudy s = bench::study_preconditioners(A_rest, A, 1e-6);
+  const Eigen::VectorXd b = Eigen::VectorXd::Random(A.rows());
+  Eigen::VectorXd y;
   for (auto _ : state) {
     y = A * b;
     benchmark::DoNotOptimize(y.data());
   }
-  state.counters["dofs"] = double(A.rows());
-  state.counters["nnz_A"] = double(A.nonZeros());
-  state.counters["nnz_L"] = double(now.matrixL().nestedExpression().nonZeros());
-  state.counters["factor_us"] = std::chrono::duration<double, std::micro>(t1 - t0).count();
-  state.counters["cholesky_apply_us"] =
-      std::chrono::duration<double, std::micro>(t3 - t2).count() / 50;
+  state.counters["it_jacobi"] = s.it_jacobi;
+  state.counters["it_block_jacobi"] = s.it_block_jacobi;
+  state.counters["it_incomplete_cholesky"] = s.it_incomplete_cholesky;
+  state.counters["it_cholesky_rest"] = s.it_cholesky_rest;
+  state.counters["it_cholesky_now"] = s.it_cholesky_now;
+  state.counters["dofs"] = s.dofs;
+  state.counters["nnz_A"] = s.nnz_A;
+  state.counters["nnz_L"] = s.nnz_L;
+  state.counters["factor_us"] = s.factor_us;
+  state.counters["cholesky_apply_us"] = s.cholesky_apply_us;
 }
 BENCHMARK(BM_UterusPreconditioners)
     ->Arg(0)

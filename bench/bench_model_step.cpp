@@ -10,13 +10,16 @@
 //                    [--steps N] [--no-probe] [--continuum-part NAME]
 //                    [--element-tangent-quality Q] [--smoothing element|face|edge|node]
 //                    [--gravity-y] [--no-simd] [--detection-margin F] [--adaptive-threads]
-//                    [--nu NU] [--json]
+//                    [--nu NU] [--json] [--preconditioners]
 // --gravity-y: gravity along -y (the Visible Human data set's down) instead of -z.
 // --no-simd: the scalar link loops (ForceModel::Options::simd = false).
 // --detection-margin: collision::ContactOptions::detection_margin (0: penetrating spheres only).
 // --adaptive-threads: Simulation::Options::adaptive_threads (the pool only while it is faster);
 // the JSON's "pool_share" is the share of the timed steps that ran on the pool.
 // --nu: every region's Poisson's ratio (the continuum law's; the JSON's "nu" is region 0's).
+// --preconditioners: after the timed steps, the step's matrix at the end state (contacts in) and
+// at rest is assembled and its preconditioners compared (preconditioners.hpp), to CG's tolerance
+// and to 1e-6: one JSON line each.
 //
 // --law continuum puts every tetrahedral part on the continuum law, or only NAME with
 // --continuum-part.
@@ -34,6 +37,7 @@
 #include "fsm/implicit_euler_integrator.hpp"
 #include "fsm/model_file.hpp"
 #include "fsm_support/probe.hpp"
+#include "preconditioners.hpp"
 
 using namespace fsm;
 
@@ -45,7 +49,7 @@ int main(int argc, char** argv) {
   double detection_margin = collision::ContactOptions<double>{}.detection_margin;
   std::optional<double> nu;  // unset: each region's own Poisson's ratio
   bool probe = true, json = false, gravity_y = false, simd = true, flutter_guard = true,
-       extrapolate = true, reuse = true, adaptive = false;
+       extrapolate = true, reuse = true, adaptive = false, preconditioners = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&]() -> std::string {
@@ -87,6 +91,8 @@ int main(int argc, char** argv) {
       detection_margin = std::atof(value().c_str());
     else if (a == "--nu")
       nu = std::atof(value().c_str());
+    else if (a == "--preconditioners")
+      preconditioners = true;
     else if (a == "--json")
       json = true;
     else if (!a.empty() && a[0] != '-' && path.empty())
@@ -98,7 +104,7 @@ int main(int argc, char** argv) {
           "[--steps N] [--no-probe] [--continuum-part NAME] "
           "[--element-tangent-quality Q] [--smoothing element|face|edge|node] [--gravity-y] "
           "[--no-simd] [--no-flutter-guard] [--no-extrapolation] [--no-reuse-end-forces] "
-          "[--detection-margin F] [--adaptive-threads] [--nu NU] [--json]\n",
+          "[--detection-margin F] [--adaptive-threads] [--nu NU] [--json] [--preconditioners]\n",
           argv[0]);
       return 2;
     }
@@ -149,6 +155,8 @@ int main(int argc, char** argv) {
     io.tolerance = tolerance;
     io.extrapolate_warm_start = extrapolate;
     sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
+    Eigen::SparseMatrix<double> A_rest;  // the step's matrix at rest, no contacts
+    if (preconditioners) A_rest = bench::implicit_matrix(sim, 1e-3);
     collision::ContactOptions<double> contact_options;
     contact_options.detection_margin = detection_margin;
     collision::ContactSolver<double> contacts(sim.model(), sim.forces(), contact_options);
@@ -171,7 +179,15 @@ int main(int argc, char** argv) {
     std::vector<double> t(std::size_t(steps), 0.0);
     long iterations = 0, on_pool = 0, unconverged = 0;
     Index probe_contacts = 0;
+    // --preconditioners: the step's matrix 10 and 100 steps before the end, contacts in.
+    std::vector<std::pair<int, Eigen::SparseMatrix<double>>> lagged;
     for (int s = 0; s < steps; ++s) {
+      for (const int lag : {100, 10})
+        if (preconditioners && s == steps - lag) {
+          contacts.compute(sim.model(), sim.forces());
+          sim.forces().start_contacts(sim.model());
+          lagged.emplace_back(lag, bench::implicit_matrix(sim, 1e-3));
+        }
       on_pool += sim.uses_pool() ? 1 : 0;
       const auto t0 = std::chrono::steady_clock::now();
       const StepReport<double> r = step();
@@ -226,6 +242,29 @@ int main(int argc, char** argv) {
           pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it, recovered, diverged, diverged_before,
           int(sim.forces().continuum_element_tangents()),
           int(sim.forces().continuum_fluttered_elements()));
+    if (preconditioners) {
+      contacts.compute(sim.model(), sim.forces());
+      sim.forces().start_contacts(sim.model());
+      const Eigen::SparseMatrix<double> A = bench::implicit_matrix(sim, 1e-3);
+      for (const double tol : {tolerance, 1e-6}) {
+        const bench::PreconditionerStudy p = bench::study_preconditioners(A_rest, A, tol, lagged);
+        std::string lags;
+        for (const auto& [lag, n] : p.it_cholesky_lagged)
+          lags += ", \"it_cholesky_lag" + std::to_string(lag) + "\": " + std::to_string(n);
+        std::printf(
+            "{\"model\": \"%s\", \"law\": \"%s\", \"preconditioners_to\": %g, \"dofs\": %.0f, "
+            "\"it_jacobi\": %d, \"it_block_jacobi\": %d, \"it_incomplete_cholesky\": %d, "
+            "\"it_cholesky_rest\": %d, \"it_cholesky_now\": %d, \"it_cholmod_now\": %d, "
+            "\"nnz_A\": %.0f, \"nnz_L\": %.0f, \"product_us\": %.1f, \"factor_us\": %.1f, "
+            "\"cholesky_apply_us\": %.1f, \"cholmod_factor_us\": %.1f, "
+            "\"cholmod_apply_us\": %.1f, \"incomplete_cholesky_apply_us\": %.1f%s, "
+            "\"step_mean_us\": %.1f, \"step_cg_iterations\": %.2f}\n",
+            path.c_str(), law.c_str(), tol, p.dofs, p.it_jacobi, p.it_block_jacobi,
+            p.it_incomplete_cholesky, p.it_cholesky_rest, p.it_cholesky_now, p.it_cholmod_now,
+            p.nnz_A, p.nnz_L, p.product_us, p.factor_us, p.cholesky_apply_us, p.cholmod_factor_us,
+            p.cholmod_apply_us, p.incomplete_cholesky_apply_us, lags.c_str(), mean * 1e6, it);
+      }
+    }
     if (probe && probe_contacts == 0) {
       std::fprintf(stderr, "bench_model_step: the probe does not touch the tissue\n");
       return 1;

@@ -22,7 +22,7 @@ PACKAGES=(
   build-essential cmake ninja-build ccache pkg-config git
   libeigen3-dev libccd-dev libxsimd-dev
   libcgal-dev libgmp-dev libmpfr-dev libboost-dev nlohmann-json3-dev libcli11-dev libassimp-dev
-  libgtest-dev libgmock-dev libbenchmark-dev libbullet-dev
+  libgtest-dev libgmock-dev libbenchmark-dev libbullet-dev libsuitesparse-dev
   python3 python3-dev pybind11-dev python3-numpy python3-pytest
   python3-venv python3-pip python3-setuptools python3-wheel
   python3-matplotlib python3-distributed python3-meshio calculix-ccx
