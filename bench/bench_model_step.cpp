@@ -17,9 +17,10 @@
 // --adaptive-threads: Simulation::Options::adaptive_threads (the pool only while it is faster);
 // the JSON's "pool_share" is the share of the timed steps that ran on the pool.
 // --nu: every region's Poisson's ratio (the continuum law's; the JSON's "nu" is region 0's).
-// --preconditioners: after the timed steps, the step's matrix at the end state (contacts in) and
-// at rest is assembled and its preconditioners compared (preconditioners.hpp), to CG's tolerance
-// and to 1e-6: one JSON line each.
+// --preconditioners: the step's matrix (contacts in) at the end of the timed steps ("held") and
+// 110 ms after the probe was pressed in ("pressing"), with factors of the same 10 and 100 steps
+// earlier and at rest, and its preconditioners compared (preconditioners.hpp), to CG's tolerance
+// and to 1e-6: one JSON line each, printed with or without --json.
 //
 // --law continuum puts every tetrahedral part on the continuum law, or only NAME with
 // --continuum-part.
@@ -173,7 +174,21 @@ int main(int argc, char** argv) {
     };
     diverged += support::sag_then_aim(sim, contacts, 0, cp);
     if (probe) cp.press(contacts, 0, cp.site.radius + 0.001);
-    for (int s = 0; s < 300; ++s) step();
+    // --preconditioners: the step's matrix while the tissue still moves after the press (steps 10,
+    // 100 and 110 of it: factors 100 and 10 steps old against the state at 110).
+    std::vector<std::pair<int, Eigen::SparseMatrix<double>>> pressing_lagged;
+    Eigen::SparseMatrix<double> A_pressing;
+    auto assemble = [&] {
+      contacts.compute(sim.model(), sim.forces());
+      sim.forces().start_contacts(sim.model());
+      return bench::implicit_matrix(sim, 1e-3);
+    };
+    for (int s = 0; s < 300; ++s) {
+      if (preconditioners && (s == 10 || s == 100))
+        pressing_lagged.emplace_back(s == 10 ? 100 : 10, assemble());
+      if (preconditioners && s == 110) A_pressing = assemble();
+      step();
+    }
     diverged_before = diverged;  // while sagging and pressing
     diverged = recovered = 0;    // count the timed steps only
     std::vector<double> t(std::size_t(steps), 0.0);
@@ -183,11 +198,7 @@ int main(int argc, char** argv) {
     std::vector<std::pair<int, Eigen::SparseMatrix<double>>> lagged;
     for (int s = 0; s < steps; ++s) {
       for (const int lag : {100, 10})
-        if (preconditioners && s == steps - lag) {
-          contacts.compute(sim.model(), sim.forces());
-          sim.forces().start_contacts(sim.model());
-          lagged.emplace_back(lag, bench::implicit_matrix(sim, 1e-3));
-        }
+        if (preconditioners && s == steps - lag) lagged.emplace_back(lag, assemble());
       on_pool += sim.uses_pool() ? 1 : 0;
       const auto t0 = std::chrono::steady_clock::now();
       const StepReport<double> r = step();
@@ -242,28 +253,33 @@ int main(int argc, char** argv) {
           pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it, recovered, diverged, diverged_before,
           int(sim.forces().continuum_element_tangents()),
           int(sim.forces().continuum_fluttered_elements()));
-    if (preconditioners) {
-      contacts.compute(sim.model(), sim.forces());
-      sim.forces().start_contacts(sim.model());
-      const Eigen::SparseMatrix<double> A = bench::implicit_matrix(sim, 1e-3);
+    // "held": at the end of the timed steps, the probe held at its depth for 0.3 s + STEPS ms;
+    // "pressing": 110 ms after the probe was pressed in, the tissue still moving.
+    auto study = [&](const char* phase, const Eigen::SparseMatrix<double>& A,
+                     const std::vector<std::pair<int, Eigen::SparseMatrix<double>>>& lags_of) {
       for (const double tol : {tolerance, 1e-6}) {
-        const bench::PreconditionerStudy p = bench::study_preconditioners(A_rest, A, tol, lagged);
+        const bench::PreconditionerStudy p = bench::study_preconditioners(A_rest, A, tol, lags_of);
         std::string lags;
         for (const auto& [lag, n] : p.it_cholesky_lagged)
           lags += ", \"it_cholesky_lag" + std::to_string(lag) + "\": " + std::to_string(n);
         std::printf(
-            "{\"model\": \"%s\", \"law\": \"%s\", \"preconditioners_to\": %g, \"dofs\": %.0f, "
+            "{\"model\": \"%s\", \"law\": \"%s\", \"phase\": \"%s\", \"preconditioners_to\": %g, "
+            "\"dofs\": %.0f, "
             "\"it_jacobi\": %d, \"it_block_jacobi\": %d, \"it_incomplete_cholesky\": %d, "
             "\"it_cholesky_rest\": %d, \"it_cholesky_now\": %d, \"it_cholmod_now\": %d, "
             "\"nnz_A\": %.0f, \"nnz_L\": %.0f, \"product_us\": %.1f, \"factor_us\": %.1f, "
             "\"cholesky_apply_us\": %.1f, \"cholmod_factor_us\": %.1f, "
             "\"cholmod_apply_us\": %.1f, \"incomplete_cholesky_apply_us\": %.1f%s, "
             "\"step_mean_us\": %.1f, \"step_cg_iterations\": %.2f}\n",
-            path.c_str(), law.c_str(), tol, p.dofs, p.it_jacobi, p.it_block_jacobi,
+            path.c_str(), law.c_str(), phase, tol, p.dofs, p.it_jacobi, p.it_block_jacobi,
             p.it_incomplete_cholesky, p.it_cholesky_rest, p.it_cholesky_now, p.it_cholmod_now,
             p.nnz_A, p.nnz_L, p.product_us, p.factor_us, p.cholesky_apply_us, p.cholmod_factor_us,
             p.cholmod_apply_us, p.incomplete_cholesky_apply_us, lags.c_str(), mean * 1e6, it);
       }
+    };
+    if (preconditioners) {
+      study("held", assemble(), lagged);
+      study("pressing", A_pressing, pressing_lagged);
     }
     if (probe && probe_contacts == 0) {
       std::fprintf(stderr, "bench_model_step: the probe does not touch the tissue\n");
