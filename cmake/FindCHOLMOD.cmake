@@ -1,6 +1,7 @@
-# FindCHOLMOD: SuiteSparse's sparse Cholesky (Debian libsuitesparse-dev), which ships no CMake
-# package of its own. Defines CHOLMOD_FOUND and the imported target CHOLMOD::CHOLMOD (headers in
-# suitesparse/, the library and the SuiteSparse config library it needs).
+# FindCHOLMOD: SuiteSparse's sparse Cholesky (Debian 12's libsuitesparse-dev: SuiteSparse 5, which
+# ships no CMake package of its own; version 7 does). Defines CHOLMOD_FOUND and the imported
+# target CHOLMOD::CHOLMOD (headers in suitesparse/, the library and the SuiteSparse config
+# library it needs).
 find_path(CHOLMOD_INCLUDE_DIR cholmod.h PATH_SUFFIXES suitesparse)
 find_library(CHOLMOD_LIBRARY cholmod)
 find_library(CHOLMOD_SUITESPARSECONFIG_LIBRARY suitesparseconfig)

@@ -243,7 +243,8 @@ TEST(ServoLoop, StatsCountLinearSolvesCutOffAtTheirCap) {
   };
   const ServoStats capped = run(true);
   EXPECT_GT(capped.steps, 100u);
-  EXPECT_GE(capped.unconverged_solves, capped.steps - capped.diverged_steps);
+  EXPECT_LT(capped.diverged_steps, capped.steps);  // most truncated steps pass the checks
+  EXPECT_GE(capped.unconverged_solves, capped.steps);  // every sub-step's solve, rejected ones too
   const ServoStats plain = run(false);
   EXPECT_GT(plain.steps, 100u);
   EXPECT_EQ(plain.unconverged_solves, 0u);
