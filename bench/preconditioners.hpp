@@ -51,7 +51,6 @@ inline Eigen::SparseMatrix<double> implicit_matrix(const Simulation<double>& sim
 }
 
 struct PreconditionerStudy {
-  double tolerance{0};
   int it_jacobi{0}, it_block_jacobi{0}, it_incomplete_cholesky{0};
   int it_cholesky_rest{0}, it_cholesky_now{0}, it_cholmod_now{-1};  // -1: not built
   double dofs{0}, nnz_A{0}, nnz_L{0};
@@ -76,7 +75,6 @@ inline PreconditionerStudy study_preconditioners(
     return std::chrono::duration<double, std::micro>(b - a).count() / n;
   };
   PreconditionerStudy s;
-  s.tolerance = tol;
   std::srand(7);
   const Vec b = Vec::Random(A.rows());
   auto pcg = [&](const auto& apply_inverse) {

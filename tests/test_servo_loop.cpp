@@ -243,7 +243,7 @@ TEST(ServoLoop, StatsCountLinearSolvesCutOffAtTheirCap) {
   };
   const ServoStats capped = run(true);
   EXPECT_GT(capped.steps, 100u);
-  EXPECT_LT(capped.diverged_steps, capped.steps);  // most truncated steps pass the checks
+  EXPECT_LT(capped.diverged_steps, capped.steps);      // most truncated steps pass the checks
   EXPECT_GE(capped.unconverged_solves, capped.steps);  // every sub-step's solve, rejected ones too
   const ServoStats plain = run(false);
   EXPECT_GT(plain.steps, 100u);

@@ -424,8 +424,8 @@ StepReport<Scalar> Simulation<Scalar>::advance(Scalar dt) noexcept {
     const int n = 1 << level;
     const Scalar h = dt / Scalar(n);
     bool good = true;
-    int iterations = 0, unconverged = 0, ran = 0;
-    for (int s = 0; s < n && good; ++s, ++ran) {
+    int iterations = 0, unconverged = 0, s = 0;  // s: the sub-steps that ran
+    for (; s < n && good; ++s) {
       // The instruments' surfaces move through the step: contact time at this substep's start.
       m_forces.set_contact_time(contact_time + Scalar(s) * h);
       const IntegratorResult r = m_integrator->step(m_model, m_forces, h);
@@ -463,7 +463,7 @@ StepReport<Scalar> Simulation<Scalar>::advance(Scalar dt) noexcept {
                (!policy.check_step_energy || within(m_start_energy + work));
       }
     }
-    report.substeps += ran;
+    report.substeps += s;
     report.solver_iterations += iterations;
     report.unconverged_solves += unconverged;
     if (good) {
