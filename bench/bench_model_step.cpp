@@ -255,10 +255,22 @@ int main(int argc, char** argv) {
           int(sim.forces().continuum_fluttered_elements()));
     // "held": at the end of the timed steps, the probe held at its depth for 0.3 s + STEPS ms;
     // "pressing": 110 ms after the probe was pressed in, the tissue still moving.
+    // Where the iterations are: block-Jacobi but with these groups of nodes solved exactly (each
+    // part's diagonal block of A factored): the axis parts (chains); every part; every part but
+    // the largest tetrahedral one.
+    std::vector<std::vector<std::vector<Index>>> groupings(3);
+    for (const Part& q : model.parts) {
+      std::vector<Index> g(std::size_t(q.num_nodes));
+      for (Index i = 0; i < q.num_nodes; ++i) g[std::size_t(i)] = q.first_node + i;
+      if (q.topology == Topology::axis) groupings[0].push_back(g);
+      groupings[1].push_back(g);
+      if (&q != target) groupings[2].push_back(g);
+    }
     auto study = [&](const char* phase, const Eigen::SparseMatrix<double>& A,
                      const std::vector<std::pair<int, Eigen::SparseMatrix<double>>>& lags_of) {
       for (const double tol : {tolerance, 1e-6}) {
-        const bench::PreconditionerStudy p = bench::study_preconditioners(A_rest, A, tol, lags_of);
+        const bench::PreconditionerStudy p =
+            bench::study_preconditioners(A_rest, A, tol, lags_of, 50, groupings);
         std::string lags;
         for (const auto& [lag, n] : p.it_cholesky_lagged)
           lags += ", \"it_cholesky_lag" + std::to_string(lag) + "\": " + std::to_string(n);
@@ -270,11 +282,14 @@ int main(int argc, char** argv) {
             "\"nnz_A\": %.0f, \"nnz_L\": %.0f, \"product_us\": %.1f, \"factor_us\": %.1f, "
             "\"cholesky_apply_us\": %.1f, \"cholmod_factor_us\": %.1f, "
             "\"cholmod_apply_us\": %.1f, \"incomplete_cholesky_apply_us\": %.1f%s, "
+            "\"it_axis_parts_exact\": %d, \"it_parts_exact\": %d, "
+            "\"it_parts_but_largest_exact\": %d, "
             "\"step_mean_us\": %.1f, \"step_cg_iterations\": %.2f}\n",
             path.c_str(), law.c_str(), phase, tol, p.dofs, p.it_jacobi, p.it_block_jacobi,
             p.it_incomplete_cholesky, p.it_cholesky_rest, p.it_cholesky_now, p.it_cholmod_now,
             p.nnz_A, p.nnz_L, p.product_us, p.factor_us, p.cholesky_apply_us, p.cholmod_factor_us,
-            p.cholmod_apply_us, p.incomplete_cholesky_apply_us, lags.c_str(), mean * 1e6, it);
+            p.cholmod_apply_us, p.incomplete_cholesky_apply_us, lags.c_str(), p.it_groups[0],
+            p.it_groups[1], p.it_groups[2], mean * 1e6, it);
       }
     };
     if (preconditioners) {

@@ -6,12 +6,15 @@
 // Cholesky (Eigen, IC with shift) and a sparse Cholesky factored at rest (no contacts) or at the
 // state of A: Eigen's SimplicialLLT (AMD ordering) and, when the build found SuiteSparse,
 // CHOLMOD's supernodal factor (FSM_BENCH_CHOLMOD). It times each factor and one application (two
-// triangular solves) and the assembled product A p. Used by bench_contact
+// triangular solves) and the assembled product A p. Given groups of nodes (bench_model_step: the
+// model's parts), it also counts the iterations with each group solved exactly and block-Jacobi
+// elsewhere: which part the iterations come from. Used by bench_contact
 // (BM_UterusPreconditioners) and bench_model_step --preconditioners.
 
 #include <Eigen/IterativeLinearSolvers>
 #include <Eigen/SparseCholesky>
 #include <chrono>
+#include <memory>
 #include <utility>
 #include <vector>
 #ifdef FSM_BENCH_CHOLMOD
@@ -61,13 +64,17 @@ struct PreconditionerStudy {
   /// Iterations with the factor (CHOLMOD's if built, else Eigen's) of the matrix `lag` steps
   /// before A's state: what an asynchronous refactor that lags by that much gives.
   std::vector<std::pair<int, int>> it_cholesky_lagged;
+  /// Iterations with each group of nodes solved exactly (its diagonal block of A factored by
+  /// SimplicialLLT) and block-Jacobi elsewhere, one count per grouping given.
+  std::vector<int> it_groups;
 };
 
 /// PCG iterations from zero to |r| <= tol |b| (b random, seeded) for each preconditioner of A,
 /// with `A_rest` the same matrix at rest for the factor at rest; times from `repeats` runs.
 inline PreconditionerStudy study_preconditioners(
     const Eigen::SparseMatrix<double>& A_rest, const Eigen::SparseMatrix<double>& A, double tol,
-    const std::vector<std::pair<int, Eigen::SparseMatrix<double>>>& lagged = {}, int repeats = 50) {
+    const std::vector<std::pair<int, Eigen::SparseMatrix<double>>>& lagged = {}, int repeats = 50,
+    const std::vector<std::vector<std::vector<Index>>>& groupings = {}) {
   using Sparse = Eigen::SparseMatrix<double>;
   using Vec = Eigen::VectorXd;
   using Clock = std::chrono::steady_clock;
@@ -144,6 +151,42 @@ inline PreconditionerStudy study_preconditioners(
     const Eigen::SimplicialLLT<Sparse> f(A_lag);
 #endif
     s.it_cholesky_lagged.emplace_back(lag, pcg([&](const Vec& r) -> Vec { return f.solve(r); }));
+  }
+  for (const auto& groups : groupings) {
+    // Dofs of each group; a factor of A restricted to them; block-Jacobi for the others.
+    std::vector<std::vector<Index>> dofs;
+    std::vector<std::unique_ptr<Eigen::SimplicialLLT<Sparse>>> factors;
+    std::vector<char> grouped(blocks.size(), 0);
+    for (const auto& g : groups) {
+      std::vector<Index> gd;
+      for (Index i : g) {
+        grouped[std::size_t(i)] = 1;
+        for (int c = 0; c < 3; ++c) gd.push_back(3 * i + c);
+      }
+      std::vector<Index> where(std::size_t(A.rows()), -1);
+      for (std::size_t k = 0; k < gd.size(); ++k) where[std::size_t(gd[k])] = Index(k);
+      std::vector<Eigen::Triplet<double>> t;
+      for (Index col : gd)
+        for (Sparse::InnerIterator it(A, col); it; ++it)
+          if (where[std::size_t(it.row())] >= 0)
+            t.emplace_back(where[std::size_t(it.row())], where[std::size_t(col)], it.value());
+      Sparse S(Index(gd.size()), Index(gd.size()));
+      S.setFromTriplets(t.begin(), t.end());
+      factors.push_back(std::make_unique<Eigen::SimplicialLLT<Sparse>>(S));
+      dofs.push_back(std::move(gd));
+    }
+    s.it_groups.push_back(pcg([&](const Vec& r) -> Vec {
+      Vec z(r.size());
+      for (std::size_t i = 0; i < blocks.size(); ++i)
+        if (!grouped[i]) z.segment<3>(3 * Index(i)) = blocks[i] * r.segment<3>(3 * Index(i));
+      for (std::size_t g = 0; g < dofs.size(); ++g) {
+        Vec rg(Index(dofs[g].size()));
+        for (std::size_t k = 0; k < dofs[g].size(); ++k) rg[Index(k)] = r[dofs[g][k]];
+        const Vec zg = factors[g]->solve(rg);
+        for (std::size_t k = 0; k < dofs[g].size(); ++k) z[dofs[g][k]] = zg[Index(k)];
+      }
+      return z;
+    }));
   }
   s.dofs = double(A.rows());
   s.nnz_A = double(A.nonZeros());
