@@ -860,8 +860,10 @@ class ContinuumTerm {
         },
         v4, kept ? m_node_rate.data() : nullptr);
     // diag(H_vol)_i = sum_a c_a (d v_a / d x_i)^2, d v_a / d x_i = sum_{T at a, i} g_{T,i} / 4.
-    // Computed per element and node pair (a, i) of the element: an upper bound of the exact
-    // diagonal's 1-ring sums would need the ring; this per-element sum is what Jacobi needs.
+    // A stand-in, per element and node pair (a, i) of the element, that drops the cross terms
+    // between the elements sharing a pair: exact on a single element, not on a mesh (neither the
+    // diagonal nor a bound of it; docs/physics.md section 5). The exact one would need a pass
+    // over the node pairs.
     for (std::size_t t = 0; t < m_volume.size(); ++t) {
       const Index* id = &m_tets[4 * t];
       Scalar c(0);
@@ -1389,13 +1391,14 @@ class ContinuumTerm {
     return m_volume[t] * (tangent_margin * Scalar(2) * m_c10[t] * m_state_factor[t] +
                           std::abs(m_pressure[t]) * F.norm() / std::sqrt(Scalar(3)));
   }
-  /// The k-th element tangent's diagonal block on its node a, as prepared:
-  /// h^2 c V (|g_a|^2 I + (Q g_a)(Q g_a)^T).
+  /// The k-th element tangent's diagonal block on its node a, as apply_element() applies it:
+  /// h^2 c V (|g_a|^2 Q Q^T + (Q g_a)(Q g_a)^T). (Q Q^T, not I: tangent_rotation()'s two Newton
+  /// steps leave Q short of orthogonal where the element is stretched far, and those are the
+  /// elements that get this tangent.)
   [[nodiscard]] Matrix3<Scalar> element_block(std::size_t k, int a) const noexcept {
     const Eigen::Map<const Matrix3<Scalar>> Q(&m_dense_rotation[9 * k]);
     const Vector3<Scalar> g = shape_gradient(std::size_t(m_dense[k]), a), qg = Q * g;
-    return m_dense_coefficient[k] *
-           (g.squaredNorm() * Matrix3<Scalar>::Identity() + qg * qg.transpose());
+    return m_dense_coefficient[k] * (g.squaredNorm() * (Q * Q.transpose()) + qg * qg.transpose());
   }
   /// y += 2 coef G^T Q sym(Q^T G p) for the k-th element tangent (Q its stored rotation).
   void apply_element(std::size_t k, const Scalar* p, Scalar* y, Scalar coef) const noexcept {
