@@ -257,7 +257,7 @@ int main(int argc, char** argv) {
     // "pressing": 110 ms after the probe was pressed in, the tissue still moving.
     // Where the iterations are: block-Jacobi but with these groups of nodes solved exactly (each
     // part's diagonal block of A factored): the axis parts (chains); every part; every part but
-    // the largest tetrahedral one.
+    // the probed one (the largest tetrahedral part; the first part of a model without one).
     std::vector<std::vector<std::vector<Index>>> groupings(3);
     for (const Part& q : model.parts) {
       std::vector<Index> g(std::size_t(q.num_nodes));

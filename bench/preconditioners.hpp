@@ -2,7 +2,8 @@
 
 // Preconditioners of the implicit step's matrix A = M + h D + h^2 K, for the scale issue's
 // choice of CG preconditioner (docs/benchmarks.md): PCG from zero to |r| <= tol |b| for a random
-// b, counting iterations, with Jacobi, 3 x 3 block-Jacobi (the integrator's default), incomplete
+// b, counting iterations, with Jacobi, 3 x 3 block-Jacobi (A's own blocks: the integrator's
+// default, which on the continuum law has a stand-in for the volumetric part's), incomplete
 // Cholesky (Eigen, IC with shift) and a sparse Cholesky factored at rest (no contacts) or at the
 // state of A: Eigen's SimplicialLLT (AMD ordering) and, when the build found SuiteSparse,
 // CHOLMOD's supernodal factor (FSM_BENCH_CHOLMOD). It times each factor and one application (two
@@ -158,6 +159,7 @@ inline PreconditionerStudy study_preconditioners(
     std::vector<std::unique_ptr<Eigen::SimplicialLLT<Sparse>>> factors;
     std::vector<char> grouped(blocks.size(), 0);
     for (const auto& g : groups) {
+      if (g.empty()) continue;
       std::vector<Index> gd;
       for (Index i : g) {
         grouped[std::size_t(i)] = 1;

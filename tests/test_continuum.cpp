@@ -447,7 +447,7 @@ TEST(Continuum, MatrixFreeTangentMatchesAssembledForEveryTangentChoice) {
 // On a single element the volumetric part's per-element blocks are exact (no second element to
 // share a node pair), so a stretched element, which gets the element tangent, checks that
 // tangent's blocks: with Q from tangent_rotation()'s two Newton steps short of orthogonal at a
-// 2.5-fold stretch, a block with I in place of Q Q^T is off by about 3 %.
+// 2.5-fold stretch, a block with I in place of Q Q^T puts the node's block 3 % off.
 TEST(Continuum, BlockJacobiBlocksAreTheProductsDiagonalBlocks) {
   for (const double stretch : {1.0, 2.5}) {
     SphereModel<double> m;

@@ -377,7 +377,8 @@ class ForceModel {
   /// (block-Jacobi preconditioner), 6 scalars per node (xx, yy, zz, xy, xz, yz) into `out`
   /// (`6|V|`): mass with drag, the links' and elements' blocks on their nodes (kept by
   /// prepare_implicit(), which `blocks` must be the output of) and the contacts in the solve;
-  /// fixed nodes get the identity. Serial; no allocation.
+  /// fixed nodes get the identity. The continuum elements' volumetric part is a per-element
+  /// stand-in for its blocks, not A's (docs/physics.md section 5). Serial; no allocation.
   void implicit_diagonal_blocks(const SphereModel<Scalar>& model, const Scalar* blocks,
                                 Scalar* out) const noexcept;
   /// @brief y = A p for the blocks of prepare_implicit(); rows of fixed nodes are zero.
