@@ -50,6 +50,19 @@ double block_volume(const SphereModel<double>& m) {
   return v;
 }
 
+/// An implicit step's buffers for `m`, filled by prepare_implicit() at its state (definite form).
+struct ImplicitBuffers {
+  explicit ImplicitBuffers(const SphereModel<double>& m)
+      : blocks(std::size_t(ForceModel<double>::implicit_block_size) * std::size_t(m.num_links())),
+        rhs(m.num_nodes(), 3),
+        diag(m.num_nodes(), 3) {}
+  void prepare(ForceModel<double>& f, const SphereModel<double>& m, double h) {
+    f.prepare_implicit(m, h, JacobianForm::definite, blocks.data(), rhs, diag);
+  }
+  std::vector<double> blocks;
+  Positions<double> rhs, diag;
+};
+
 TEST(SphereModelTetrahedra, AreCheckedWhenAdded) {
   SphereModel<double> m;
   const Index a = m.add_region("a", soft()), b = m.add_region("b", soft());
@@ -393,10 +406,9 @@ TEST(Continuum, MatrixFreeTangentMatchesAssembledForEveryTangentChoice) {
     f.set_options(o);
     const Index n = m.num_nodes();
     const double h = 1e-3;
-    std::vector<double> blocks(std::size_t(ForceModel<double>::implicit_block_size) *
-                               std::size_t(m.num_links()));
-    Positions<double> rhs(n, 3), diag(n, 3), y(n, 3), p(n, 3);
-    f.prepare_implicit(m, h, JacobianForm::definite, blocks.data(), rhs, diag);
+    ImplicitBuffers step(m);
+    step.prepare(f, m, h);
+    Positions<double> y(n, 3), p(n, 3);
     const Index element_tangents = f.continuum_element_tangents();
     if (quality > 1) {
       EXPECT_EQ(element_tangents, m.num_tetrahedra());
@@ -411,7 +423,7 @@ TEST(Continuum, MatrixFreeTangentMatchesAssembledForEveryTangentChoice) {
     std::uniform_real_distribution<double> u(-1, 1);
     for (Index i = 0; i < n; ++i)
       for (int c = 0; c < 3; ++c) p(i, c) = m.fixed()[i] ? 0.0 : u(rng);
-    f.apply_implicit(m, blocks.data(), p, y);
+    f.apply_implicit(m, step.blocks.data(), p, y);
     Eigen::VectorXd Ap = A * Eigen::Map<const Eigen::VectorXd>(p.data(), 3 * n);
     Ap.segment<3>(0).setZero();  // the fixed node's row
     EXPECT_TRUE(matrices_near(Eigen::Map<const Eigen::VectorXd>(y.data(), 3 * n), Ap, 1e-10))
@@ -421,12 +433,12 @@ TEST(Continuum, MatrixFreeTangentMatchesAssembledForEveryTangentChoice) {
     Eigen::VectorXd b = h * Eigen::Map<const Eigen::VectorXd>(F.data(), 3 * n) +
                         h * h * K * Eigen::Map<const Eigen::VectorXd>(m.velocities().data(), 3 * n);
     b.segment<3>(0).setZero();
-    EXPECT_TRUE(matrices_near(Eigen::Map<const Eigen::VectorXd>(rhs.data(), 3 * n), b, 1e-10))
+    EXPECT_TRUE(matrices_near(Eigen::Map<const Eigen::VectorXd>(step.rhs.data(), 3 * n), b, 1e-10))
         << "quality " << quality;
     // The block-Jacobi blocks (the volumetric part's per element, so not A's exactly) are
     // positive definite and at least the mass.
     std::vector<double> pb(6 * std::size_t(n));
-    f.implicit_diagonal_blocks(m, blocks.data(), pb.data());
+    f.implicit_diagonal_blocks(m, step.blocks.data(), pb.data());
     for (Index i = 1; i < n; ++i) {
       const double* B = &pb[6 * std::size_t(i)];
       Eigen::Matrix3d Bi;
@@ -463,19 +475,18 @@ TEST(Continuum, BlockJacobiBlocksAreTheProductsDiagonalBlocks) {
     ForceModel<double> f = no_gravity(m);
     const Index n = m.num_nodes();
     const double h = 1e-3;
-    std::vector<double> blocks(std::size_t(ForceModel<double>::implicit_block_size) *
-                               std::size_t(m.num_links()));
-    Positions<double> rhs(n, 3), diag(n, 3), y(n, 3), p(n, 3);
-    f.prepare_implicit(m, h, JacobianForm::definite, blocks.data(), rhs, diag);
+    ImplicitBuffers step(m);
+    step.prepare(f, m, h);
+    Positions<double> y(n, 3), p(n, 3);
     EXPECT_EQ(f.continuum_element_tangents(), stretch > 1 ? 1 : 0);
     std::vector<double> pb(6 * std::size_t(n));
-    f.implicit_diagonal_blocks(m, blocks.data(), pb.data());
+    f.implicit_diagonal_blocks(m, step.blocks.data(), pb.data());
     for (Index i = 0; i < n; ++i) {
       M3 probed;
       for (int c = 0; c < 3; ++c) {
         p.setZero();
         p(i, c) = 1;
-        f.apply_implicit(m, blocks.data(), p, y);
+        f.apply_implicit(m, step.blocks.data(), p, y);
         probed.col(c) = y.row(i).transpose();
       }
       const double* B = &pb[6 * std::size_t(i)];

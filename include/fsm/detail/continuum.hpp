@@ -825,8 +825,9 @@ class ContinuumTerm {
       slot = tangent_rotation(F);
       m_dense_coefficient[k] = h2 * element_coefficient(t, F);
       apply_element(k, v, rhs, -m_dense_coefficient[k]);
+      const Matrix3<Scalar> QQt = slot * slot.transpose();
       for (int a = 0; a < 4; ++a) {
-        const Matrix3<Scalar> B = element_block(k, a);
+        const Matrix3<Scalar> B = element_block(k, a, QQt);
         Scalar* o = &m_node_blocks[6 * std::size_t(m_tets[4 * t + std::size_t(a)])];
         o[0] += B(0, 0);
         o[1] += B(1, 1);
@@ -1394,11 +1395,12 @@ class ContinuumTerm {
   /// The k-th element tangent's diagonal block on its node a, as apply_element() applies it:
   /// h^2 c V (|g_a|^2 Q Q^T + (Q g_a)(Q g_a)^T). (Q Q^T, not I: tangent_rotation()'s two Newton
   /// steps leave Q short of orthogonal where the element is stretched far, and those are the
-  /// elements that get this tangent.)
-  [[nodiscard]] Matrix3<Scalar> element_block(std::size_t k, int a) const noexcept {
+  /// elements that get this tangent.) `QQt`: Q Q^T, the same for the element's four nodes.
+  [[nodiscard]] Matrix3<Scalar> element_block(std::size_t k, int a,
+                                              const Matrix3<Scalar>& QQt) const noexcept {
     const Eigen::Map<const Matrix3<Scalar>> Q(&m_dense_rotation[9 * k]);
     const Vector3<Scalar> g = shape_gradient(std::size_t(m_dense[k]), a), qg = Q * g;
-    return m_dense_coefficient[k] * (g.squaredNorm() * (Q * Q.transpose()) + qg * qg.transpose());
+    return m_dense_coefficient[k] * (g.squaredNorm() * QQt + qg * qg.transpose());
   }
   /// y += 2 coef G^T Q sym(Q^T G p) for the k-th element tangent (Q its stored rotation).
   void apply_element(std::size_t k, const Scalar* p, Scalar* y, Scalar coef) const noexcept {
