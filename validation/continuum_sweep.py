@@ -238,7 +238,8 @@ def main():
                         **score(d, F, case, nu), "median_step_us": s["median_step_us"],
                         "mean_iterations": s["mean_iterations"], "diverged": s["diverged"],
                         "inverted_steps": s["inverted_steps"],
-                        "max_penetration_m": s["max_penetration_m"], "curve": out})
+                        "max_penetration_m": s["max_penetration_m"],
+                        "max_face_penetration_m": s.get("max_face_penetration_m"), "curve": out})
         if a.no_fem:
             continue
         model = os.path.join(a.work, f"r{r:g}.fsm")

@@ -23,9 +23,13 @@
 // the volume term (--poisson / --kappa). The force on the tool (bonded: the z-sum of the internal
 // forces on the loaded spheres; contact: the z force of the instrument's wrench) is sampled at
 // `samples` equal steps of the displacement (at 5 mm/min to 2.5 mm, 30 samples = 1 Hz). Gravity
-// is off (the reference has none). Prints a JSON summary on stdout.
+// is off (the reference has none). Prints a JSON summary on stdout. For the contact indenters it
+// also reports how deep any sphere centre (`max_penetration_m`) and any point of the filling's
+// boundary faces (`max_face_penetration_m`, sampled at each force sample) got inside the tool: the
+// vertex contact holds the centres out, while the flat faces between them may cut through a rim.
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -136,6 +140,30 @@ Args parse(int argc, char** argv) {
   return a;
 }
 
+// The boundary faces of a tetrahedral filling: faces of exactly one tetrahedron (node indices).
+std::vector<std::array<fsm::Index, 3>> boundary_faces(const fsm::SphereModel<double>& model) {
+  std::vector<std::array<fsm::Index, 3>> faces;
+  const auto tets = model.tetrahedra();
+  faces.reserve(4 * std::size_t(tets.rows()));
+  for (fsm::Index t = 0; t < tets.rows(); ++t)
+    for (int skip = 0; skip < 4; ++skip) {
+      std::array<fsm::Index, 3> f{};
+      for (int k = 0, m = 0; k < 4; ++k)
+        if (k != skip) f[std::size_t(m++)] = tets(t, k);
+      std::sort(f.begin(), f.end());
+      faces.push_back(f);
+    }
+  std::sort(faces.begin(), faces.end());
+  std::vector<std::array<fsm::Index, 3>> once;
+  for (std::size_t i = 0; i < faces.size();) {
+    std::size_t j = i + 1;
+    while (j < faces.size() && faces[j] == faces[i]) ++j;
+    if (j - i == 1) once.push_back(faces[i]);
+    i = j;
+  }
+  return once;
+}
+
 // JSON has no inf or NaN: null instead.
 std::string json_number(double x) {
   if (!std::isfinite(x)) return "null";
@@ -244,6 +272,27 @@ int run(const Args& a) {
       if (c) max_penetration = std::max(max_penetration, c->depth);
     }
   };
+  // How deep any point of the boundary faces got inside the tool (m), at the force samples: each
+  // face sampled at the 45 points of a barycentric grid of step 1/8 (vertices, edges, interior).
+  const std::vector<std::array<Index, 3>> faces =
+      contact ? boundary_faces(sim.model()) : std::vector<std::array<Index, 3>>{};
+  double max_face_penetration = 0;
+  auto track_face_clearance = [&] {
+    const auto& ins = contacts.instrument(tool_index);
+    const auto x = sim.model().positions();
+    constexpr int m = 8;
+    for (const auto& f : faces) {
+      const Vector3<double> xa = x.row(f[0]).transpose(), xb = x.row(f[1]).transpose(),
+                            xc = x.row(f[2]).transpose();
+      for (int u = 0; u <= m; ++u)
+        for (int v = 0; u + v <= m; ++v) {
+          const Vector3<double> p =
+              (double(u) * xa + double(v) * xb + double(m - u - v) * xc) / double(m);
+          if (const auto hit = collision::contact(ins.shape, ins.pose, p, 0.0))
+            max_face_penetration = std::max(max_face_penetration, hit->depth);
+        }
+    }
+  };
   const double omega_v2 = volume.num_tetrahedra() > 0
                               ? volume.omega_max_squared(sim.model().masses(), sim.model().fixed())
                               : 0.0;
@@ -323,6 +372,7 @@ int run(const Args& a) {
            d >= a.depth * double(next_sample) / a.samples - 1e-12 * a.depth) {
       sample_d.push_back(d);
       sample_f.push_back(tool_force());
+      if (contact) track_face_clearance();
       ++next_sample;
     }
   }
@@ -351,6 +401,7 @@ int run(const Args& a) {
       "\"omega_volume\": %.6g, \"stable_dt\": %s, \"mean_edge_m\": %.6g, "
       "\"final_force_N\": %s, \"samples\": %zu, \"law\": \"%s\", \"nu\": %.4g, "
       "\"softened_contacts\": %ld, \"inverted_steps\": %ld, \"max_penetration_m\": %s, "
+      "\"max_face_penetration_m\": %s, "
       "\"mean_iterations\": %.4g, \"unconverged_solves\": %ld, \"smoothing\": \"%s\", "
       "\"element_share\": %.4g}\n",
       a.scene.c_str(), to_string(tissue.parts[0].topology), a.load_case.c_str(),
@@ -362,6 +413,7 @@ int run(const Args& a) {
       json_number(sample_f.back()).c_str(), sample_d.size(), a.law.c_str(),
       a.law == "continuum" ? a.nu : 0.0, softened, inverted_steps,
       json_number(contact ? max_penetration : std::nan("")).c_str(),
+      json_number(contact ? max_face_penetration : std::nan("")).c_str(),
       double(iterations) / double(std::max(steps, 1L)), unconverged, a.smoothing.c_str(),
       a.smoothing == "element" ? 1.0 : a.element_share);
   return finite && diverged == 0 ? 0 : 3;
