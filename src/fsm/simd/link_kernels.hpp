@@ -47,6 +47,22 @@ inline void load_transposed(const double* r0, const double* r1, const double* r2
   load_transposed4<Arch>(r0, r1, r2, r3, X, Y, Z, unused);
 }
 
+// Four links' differences of node rows, (x_j - x_i) per link, into the batches of their columns:
+// the rows are subtracted first and one transpose does the rest (the same subtractions, lane by
+// lane, as transposing both ends and subtracting: the results are identical).
+template <class Arch>
+inline void load_difference_transposed(const double* base, const std::int32_t* P,
+                                       xsimd::batch<double, Arch>& X, xsimd::batch<double, Arch>& Y,
+                                       xsimd::batch<double, Arch>& Z) noexcept {
+  using B = xsimd::batch<double, Arch>;
+  auto row = [&](int k) {
+    return B::load_unaligned(base + 4 * std::int64_t(P[2 * k + 1])) -
+           B::load_unaligned(base + 4 * std::int64_t(P[2 * k]));
+  };
+  B unused;
+  transpose4<Arch>(row(0), row(1), row(2), row(3), X, Y, Z, unused);
+}
+
 // One link, scalar: the batch kernel's remainder (the same formula as accumulate_link_forces).
 // Arch only names the instantiation apart from other instruction sets' (it is compiled with this
 // file's flags).
@@ -126,17 +142,9 @@ void link_forces(const LinkArrays& L, const double* x4, const double* v4, double
   std::int32_t l = begin;
   for (; l + 4 <= end; l += 4) {
     const std::int32_t* P = L.ij + 2 * std::int64_t(l);
-    const std::int64_t i0 = 4 * std::int64_t(P[0]), i1 = 4 * std::int64_t(P[2]),
-                       i2 = 4 * std::int64_t(P[4]), i3 = 4 * std::int64_t(P[6]);
-    const std::int64_t j0 = 4 * std::int64_t(P[1]), j1 = 4 * std::int64_t(P[3]),
-                       j2 = 4 * std::int64_t(P[5]), j3 = 4 * std::int64_t(P[7]);
-    B xi, yi, zi, xj, yj, zj, vxi, vyi, vzi, vxj, vyj, vzj;
-    load_transposed<Arch>(x4 + i0, x4 + i1, x4 + i2, x4 + i3, xi, yi, zi);
-    load_transposed<Arch>(x4 + j0, x4 + j1, x4 + j2, x4 + j3, xj, yj, zj);
-    load_transposed<Arch>(v4 + i0, v4 + i1, v4 + i2, v4 + i3, vxi, vyi, vzi);
-    load_transposed<Arch>(v4 + j0, v4 + j1, v4 + j2, v4 + j3, vxj, vyj, vzj);
-    const B dx = xj - xi, dy = yj - yi, dz = zj - zi;
-    const B ux = vxj - vxi, uy = vyj - vyi, uz = vzj - vzi;
+    B dx, dy, dz, ux, uy, uz;
+    load_difference_transposed<Arch>(x4, P, dx, dy, dz);
+    load_difference_transposed<Arch>(v4, P, ux, uy, uz);
     const B l2 = dx * dx + dy * dy + dz * dz;
     const B inv = xsimd::select(l2 > B(0.0), B(1.0) / xsimd::sqrt(l2), B(0.0));
     const B rest = B::load_unaligned(L.rest + l);
@@ -234,18 +242,11 @@ void link_prepare(const LinkArrays& L, const double* x4, const double* v4, doubl
   std::int32_t l = begin;
   for (; l + 4 <= end; l += 4) {
     const std::int32_t* P = L.ij + 2 * std::int64_t(l);
-    const std::int64_t i0 = 4 * std::int64_t(P[0]), i1 = 4 * std::int64_t(P[2]),
-                       i2 = 4 * std::int64_t(P[4]), i3 = 4 * std::int64_t(P[6]);
-    const std::int64_t j0 = 4 * std::int64_t(P[1]), j1 = 4 * std::int64_t(P[3]),
-                       j2 = 4 * std::int64_t(P[5]), j3 = 4 * std::int64_t(P[7]);
-    B xi, yi, zi, xj, yj, zj, vxi, vyi, vzi, vxj, vyj, vzj;
-    load_transposed<Arch>(x4 + i0, x4 + i1, x4 + i2, x4 + i3, xi, yi, zi);
-    load_transposed<Arch>(x4 + j0, x4 + j1, x4 + j2, x4 + j3, xj, yj, zj);
-    load_transposed<Arch>(v4 + i0, v4 + i1, v4 + i2, v4 + i3, vxi, vyi, vzi);
-    load_transposed<Arch>(v4 + j0, v4 + j1, v4 + j2, v4 + j3, vxj, vyj, vzj);
-    batch(xj - xi, yj - yi, zj - zi, vxj - vxi, vyj - vyi, vzj - vzi, B::load_unaligned(L.rest + l),
-          B::load_unaligned(L.ks + l), B::load_unaligned(L.kd + l), B::load_unaligned(L.kl + l),
-          B::load_unaligned(L.es + l));
+    B dx, dy, dz, ux, uy, uz;
+    load_difference_transposed<Arch>(x4, P, dx, dy, dz);
+    load_difference_transposed<Arch>(v4, P, ux, uy, uz);
+    batch(dx, dy, dz, ux, uy, uz, B::load_unaligned(L.rest + l), B::load_unaligned(L.ks + l),
+          B::load_unaligned(L.kd + l), B::load_unaligned(L.kl + l), B::load_unaligned(L.es + l));
     emit(l, 4);
   }
   if (l < end) {  // the remainder: fill the missing lanes with copies of the last link
@@ -286,17 +287,13 @@ void link_apply(const std::int32_t* ij, const double* blocks, const double* p4, 
   std::int32_t l = begin;
   for (; l + 4 <= end; l += 4) {
     const std::int32_t* P = ij + 2 * std::int64_t(l);
-    B xi, yi, zi, xj, yj, zj, n0, n1, n2, a;
-    load_transposed<Arch>(p4 + 4 * std::int64_t(P[0]), p4 + 4 * std::int64_t(P[2]),
-                          p4 + 4 * std::int64_t(P[4]), p4 + 4 * std::int64_t(P[6]), xi, yi, zi);
-    load_transposed<Arch>(p4 + 4 * std::int64_t(P[1]), p4 + 4 * std::int64_t(P[3]),
-                          p4 + 4 * std::int64_t(P[5]), p4 + 4 * std::int64_t(P[7]), xj, yj, zj);
+    B dx, dy, dz, n0, n1, n2, a;
+    load_difference_transposed<Arch>(p4, P, dx, dy, dz);
     const double* blk = blocks + 5 * std::int64_t(l);
     // (n0, n1, n2, a) of each link as rows; b on its own.
     load_transposed4<Arch>(blk, blk + 5, blk + 10, blk + 15, n0, n1, n2, a);
     alignas(32) const double bs[4] = {blk[4], blk[9], blk[14], blk[19]};
     const B b = B::load_aligned(bs);
-    const B dx = xj - xi, dy = yj - yi, dz = zj - zi;
     const B s = a * (n0 * dx + n1 * dy + n2 * dz);
     (B(0.0) - (s * n0 + b * dx)).store_aligned(gx);
     (B(0.0) - (s * n1 + b * dy)).store_aligned(gy);

@@ -37,22 +37,21 @@ inline xsimd::batch<double, Arch> inverse_cbrt_squared(
 template <class Arch>
 struct TetBatch {
   using B = xsimd::batch<double, Arch>;
-  B X[4], Y[4], Z[4];  // corners
-  B d[3][3];           // edge vectors d[k][axis] = corner k+1 - corner 0
-  B F[3][3];           // F[r][c]
+  B d[3][3];  // edge vectors d[k][axis] = corner k+1 - corner 0
+  B F[3][3];  // F[r][c]
   B J, I1, g, dg, q, W, slope, stiffening;
 
+  // Each lane's edge rows (corner k+1 - corner 0) subtracted first, then one transpose per edge:
+  // the same subtractions lane by lane as transposing the four corners (identical results).
   inline void load(const std::int32_t* nodes, const double* x4) noexcept {
-    for (int c = 0; c < 4; ++c) {
-      const std::int32_t* n = nodes + 4 * c;
-      load_transposed<Arch>(x4 + 4 * std::int64_t(n[0]), x4 + 4 * std::int64_t(n[1]),
-                            x4 + 4 * std::int64_t(n[2]), x4 + 4 * std::int64_t(n[3]), X[c], Y[c],
-                            Z[c]);
-    }
+    B origin[4], unused;
+    for (int l = 0; l < 4; ++l) origin[l] = B::load_unaligned(x4 + 4 * std::int64_t(nodes[l]));
     for (int k = 0; k < 3; ++k) {
-      d[k][0] = X[k + 1] - X[0];
-      d[k][1] = Y[k + 1] - Y[0];
-      d[k][2] = Z[k + 1] - Z[0];
+      const std::int32_t* n = nodes + 4 * (k + 1);
+      B row[4];
+      for (int l = 0; l < 4; ++l)
+        row[l] = B::load_unaligned(x4 + 4 * std::int64_t(n[l])) - origin[l];
+      transpose4<Arch>(row[0], row[1], row[2], row[3], d[k][0], d[k][1], d[k][2], unused);
     }
   }
 
