@@ -128,10 +128,10 @@ struct RunScatter {
   }
 };
 
-// Four links per batch: each link's two nodes are loaded as rows and transposed (no gathers: on
-// this machine's AMD cores AVX2 gathers cost more than the arithmetic they feed); the forces go
-// back link by link, the first node's summed over a run of links that share it (the builder sorts
-// links so), which keeps its force out of memory between links.
+// Four links per batch: each link's two nodes are loaded as rows, subtracted, and the differences
+// transposed (no gathers: on this machine's AMD cores AVX2 gathers cost more than the arithmetic
+// they feed); the forces go back link by link, the first node's summed over a run of links that
+// share it (the builder sorts links so), which keeps its force out of memory between links.
 template <class Arch, bool Bilinear, bool AlongLink>
 void link_forces(const LinkArrays& L, const double* x4, const double* v4, double* out,
                  std::int32_t begin, std::int32_t end) noexcept {
