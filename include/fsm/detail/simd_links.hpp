@@ -41,9 +41,9 @@ using LinkApplyKernel = void (*)(const std::int32_t* ij, const double* blocks, c
                                  double* y, std::int32_t begin, std::int32_t end);
 
 /// The elastic energy (J) of links [begin, end), VoigtLink::energy summed; `x` holds 3 doubles
-/// per node (the model's positions).
-using LinkEnergyKernel = double (*)(const LinkArrays& links, const double* x, std::int32_t begin,
-                                    std::int32_t end);
+/// per node (the model's positions) for `num_nodes` nodes.
+using LinkEnergyKernel = double (*)(const LinkArrays& links, const double* x,
+                                    std::int32_t num_nodes, std::int32_t begin, std::int32_t end);
 
 /// The energy kernel for this CPU, or nullptr.
 LinkEnergyKernel link_energy_kernel() noexcept;

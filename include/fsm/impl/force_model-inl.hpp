@@ -688,7 +688,9 @@ Scalar ForceModel<Scalar>::link_energy(const SphereModel<Scalar>& model,
           const detail::simd::LinkArrays links{L.ij, L.rest, L.ks, L.kd, L.kl, L.es};
           for (const auto& [a, b] : m_force_ranges) {
             const Index lo = std::max(a, begin), hi = std::min(b, end);
-            if (lo < hi) sum += kernel(links, p, std::int32_t(lo), std::int32_t(hi));
+            if (lo < hi)
+              sum += kernel(links, p, std::int32_t(model.num_nodes()), std::int32_t(lo),
+                            std::int32_t(hi));
           }
           return sum;
         }

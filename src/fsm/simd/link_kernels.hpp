@@ -138,9 +138,9 @@ void link_forces(const LinkArrays& L, const double* x4, const double* v4, double
   using B = xsimd::batch<double, Arch>;
   static_assert(B::size == 4, "the transpose is written for 4 lanes");
   RunScatter<Arch> scatter(out);
-  alignas(64) double Fx[4], Fy[4], Fz[4];
-  std::int32_t l = begin;
-  for (; l + 4 <= end; l += 4) {
+  alignas(64) double Fx[8], Fy[8], Fz[8];
+  // One batch of four links from l into lanes [k, k + 4) of Fx, Fy, Fz.
+  auto batch = [&](std::int32_t l, int k) {
     const std::int32_t* P = L.ij + 2 * std::int64_t(l);
     B dx, dy, dz, ux, uy, uz;
     load_difference_transposed<Arch>(x4, P, dx, dy, dz);
@@ -160,15 +160,27 @@ void link_forces(const LinkArrays& L, const double* x4, const double* v4, double
     const B kd = B::load_unaligned(L.kd + l);
     if (AlongLink) {
       const B s = (fe + kd * (ux * dx + uy * dy + uz * dz) * inv) * inv;
-      (s * dx).store_aligned(Fx);
-      (s * dy).store_aligned(Fy);
-      (s * dz).store_aligned(Fz);
+      (s * dx).store_aligned(Fx + k);
+      (s * dy).store_aligned(Fy + k);
+      (s * dz).store_aligned(Fz + k);
     } else {
       const B s = fe * inv;
-      (s * dx + kd * ux).store_aligned(Fx);
-      (s * dy + kd * uy).store_aligned(Fy);
-      (s * dz + kd * uz).store_aligned(Fz);
+      (s * dx + kd * ux).store_aligned(Fx + k);
+      (s * dy + kd * uy).store_aligned(Fy + k);
+      (s * dz + kd * uz).store_aligned(Fz + k);
     }
+  };
+  // Two batches before their scatter: their square roots and divisions overlap.
+  std::int32_t l = begin;
+  for (; l + 8 <= end; l += 8) {
+    batch(l, 0);
+    batch(l + 4, 4);
+    const std::int32_t* P = L.ij + 2 * std::int64_t(l);
+    for (int k = 0; k < 8; ++k) scatter.put(P[2 * k], P[2 * k + 1], Fx[k], Fy[k], Fz[k]);
+  }
+  for (; l + 4 <= end; l += 4) {
+    batch(l, 0);
+    const std::int32_t* P = L.ij + 2 * std::int64_t(l);
     for (int k = 0; k < 4; ++k) scatter.put(P[2 * k], P[2 * k + 1], Fx[k], Fy[k], Fz[k]);
   }
   for (; l < end; ++l) {
@@ -187,9 +199,11 @@ void link_prepare(const LinkArrays& L, const double* x4, const double* v4, doubl
   using B = xsimd::batch<double, Arch>;
   const double h2 = h * h;
   RunScatter<Arch> scatter(rhs);
-  alignas(64) double out[9][4];  // rx, ry, rz, n0, n1, n2, a, b, (unused)
-  auto batch = [&](const B& dx, const B& dy, const B& dz, const B& ux, const B& uy, const B& uz,
-                   const B& rest, const B& ks, const B& kd, const B& kl, const B& esw) {
+  alignas(64) double outs[2][9][4];  // two batches' rx, ry, rz, n0, n1, n2, a, b, (unused)
+  auto batch = [&](int slot, const B& dx, const B& dy, const B& dz, const B& ux, const B& uy,
+                   const B& uz, const B& rest, const B& ks, const B& kd, const B& kl,
+                   const B& esw) {
+    double(&out)[9][4] = outs[slot];
     const B l2 = dx * dx + dy * dy + dz * dz;
     const auto pos = l2 > B(0.0);
     const B len = xsimd::sqrt(l2);
@@ -228,7 +242,8 @@ void link_prepare(const LinkArrays& L, const double* x4, const double* v4, doubl
     (B(h2) * alpha + (AlongLink ? B(h) * kd : B(0.0))).store_aligned(out[6]);
     (B(h2) * beta + (AlongLink ? B(0.0) : B(h) * kd)).store_aligned(out[7]);
   };
-  auto emit = [&](std::int32_t l, int lanes) {
+  auto emit = [&](std::int32_t l, int lanes, int slot) {
+    const double(&out)[9][4] = outs[slot];
     for (int k = 0; k < lanes; ++k) {
       double* blk = blocks + 5 * std::int64_t(l + k);
       blk[0] = out[3][k];
@@ -239,15 +254,25 @@ void link_prepare(const LinkArrays& L, const double* x4, const double* v4, doubl
       scatter.put(L.ij[2 * (l + k)], L.ij[2 * (l + k) + 1], out[0][k], out[1][k], out[2][k]);
     }
   };
-  std::int32_t l = begin;
-  for (; l + 4 <= end; l += 4) {
+  auto full_batch = [&](std::int32_t l, int slot) {
     const std::int32_t* P = L.ij + 2 * std::int64_t(l);
     B dx, dy, dz, ux, uy, uz;
     load_difference_transposed<Arch>(x4, P, dx, dy, dz);
     load_difference_transposed<Arch>(v4, P, ux, uy, uz);
-    batch(dx, dy, dz, ux, uy, uz, B::load_unaligned(L.rest + l), B::load_unaligned(L.ks + l),
+    batch(slot, dx, dy, dz, ux, uy, uz, B::load_unaligned(L.rest + l), B::load_unaligned(L.ks + l),
           B::load_unaligned(L.kd + l), B::load_unaligned(L.kl + l), B::load_unaligned(L.es + l));
-    emit(l, 4);
+  };
+  // Two batches before their output, as in link_forces.
+  std::int32_t l = begin;
+  for (; l + 8 <= end; l += 8) {
+    full_batch(l, 0);
+    full_batch(l + 4, 1);
+    emit(l, 4, 0);
+    emit(l + 4, 4, 1);
+  }
+  for (; l + 4 <= end; l += 4) {
+    full_batch(l, 0);
+    emit(l, 4, 0);
   }
   if (l < end) {  // the remainder: fill the missing lanes with copies of the last link
     alignas(64) double d[6][4], c[5][4];
@@ -267,11 +292,11 @@ void link_prepare(const LinkArrays& L, const double* x4, const double* v4, doubl
       c[3][k] = L.kl[q];
       c[4][k] = L.es[q];
     }
-    batch(B::load_aligned(d[0]), B::load_aligned(d[1]), B::load_aligned(d[2]),
+    batch(0, B::load_aligned(d[0]), B::load_aligned(d[1]), B::load_aligned(d[2]),
           B::load_aligned(d[3]), B::load_aligned(d[4]), B::load_aligned(d[5]),
           B::load_aligned(c[0]), B::load_aligned(c[1]), B::load_aligned(c[2]),
           B::load_aligned(c[3]), B::load_aligned(c[4]));
-    emit(l, int(end - l));
+    emit(l, int(end - l), 0);
   }
   scatter.flush();
 }
@@ -283,9 +308,9 @@ void link_apply(const std::int32_t* ij, const double* blocks, const double* p4, 
                 std::int32_t begin, std::int32_t end) noexcept {
   using B = xsimd::batch<double, Arch>;
   RunScatter<Arch> scatter(y);  // puts -g: y_i += (-g), y_j -= (-g)
-  alignas(64) double gx[4], gy[4], gz[4];
-  std::int32_t l = begin;
-  for (; l + 4 <= end; l += 4) {
+  alignas(64) double gx[8], gy[8], gz[8];
+  // One batch of four links from l into lanes [k, k + 4) of gx, gy, gz.
+  auto batch = [&](std::int32_t l, int k) {
     const std::int32_t* P = ij + 2 * std::int64_t(l);
     B dx, dy, dz, n0, n1, n2, a;
     load_difference_transposed<Arch>(p4, P, dx, dy, dz);
@@ -295,9 +320,20 @@ void link_apply(const std::int32_t* ij, const double* blocks, const double* p4, 
     alignas(32) const double bs[4] = {blk[4], blk[9], blk[14], blk[19]};
     const B b = B::load_aligned(bs);
     const B s = a * (n0 * dx + n1 * dy + n2 * dz);
-    (B(0.0) - (s * n0 + b * dx)).store_aligned(gx);
-    (B(0.0) - (s * n1 + b * dy)).store_aligned(gy);
-    (B(0.0) - (s * n2 + b * dz)).store_aligned(gz);
+    (B(0.0) - (s * n0 + b * dx)).store_aligned(gx + k);
+    (B(0.0) - (s * n1 + b * dy)).store_aligned(gy + k);
+    (B(0.0) - (s * n2 + b * dz)).store_aligned(gz + k);
+  };
+  std::int32_t l = begin;
+  for (; l + 8 <= end; l += 8) {  // two batches before their scatter, as in link_forces
+    batch(l, 0);
+    batch(l + 4, 4);
+    const std::int32_t* P = ij + 2 * std::int64_t(l);
+    for (int k = 0; k < 8; ++k) scatter.put(P[2 * k], P[2 * k + 1], gx[k], gy[k], gz[k]);
+  }
+  for (; l + 4 <= end; l += 4) {
+    batch(l, 0);
+    const std::int32_t* P = ij + 2 * std::int64_t(l);
     for (int k = 0; k < 4; ++k) scatter.put(P[2 * k], P[2 * k + 1], gx[k], gy[k], gz[k]);
   }
   for (; l < end; ++l) {
@@ -312,10 +348,11 @@ void link_apply(const std::int32_t* ij, const double* blocks, const double* p4, 
   scatter.flush();
 }
 
-// The energy kernel (see simd_links.hpp): VoigtLink::energy of each link, four per batch, the
-// positions read from the 3-per-node array (four scalar loads a coordinate: the square root is
-// what the batch saves). The bilinear form covers the linear links too (their switch strain is
-// never reached).
+// The energy kernel (see simd_links.hpp): VoigtLink::energy of each link, four per batch. Each
+// node's (x, y, z) is one 4-wide load from the 3-per-node array (its fourth lane the next node's
+// x, unused; the last node, which has no next, is loaded lane by lane), and the four links'
+// differences are transposed once, as in the force kernel. The bilinear form covers the linear
+// links too (their switch strain is never reached).
 template <class Arch>
 inline double link_energy_one(const LinkArrays& L, const double* x, std::int32_t l) noexcept {
   const double* xi = x + 3 * std::int64_t(L.ij[2 * l]);
@@ -329,21 +366,22 @@ inline double link_energy_one(const LinkArrays& L, const double* x, std::int32_t
 }
 
 template <class Arch>
-double link_energy(const LinkArrays& L, const double* x, std::int32_t begin,
+double link_energy(const LinkArrays& L, const double* x, std::int32_t num_nodes, std::int32_t begin,
                    std::int32_t end) noexcept {
   using B = xsimd::batch<double, Arch>;
   static_assert(B::size == 4, "four links per batch");
+  const std::int32_t last = num_nodes - 1;
+  auto node = [&](std::int32_t i) {
+    const double* r = x + 3 * std::int64_t(i);
+    return i < last ? B::load_unaligned(r) : B{r[0], r[1], r[2], 0.0};
+  };
   B sum(0.0);
   std::int32_t l = begin;
   for (; l + 4 <= end; l += 4) {
     const std::int32_t* P = L.ij + 2 * std::int64_t(l);
-    const double *i0 = x + 3 * std::int64_t(P[0]), *i1 = x + 3 * std::int64_t(P[2]),
-                 *i2 = x + 3 * std::int64_t(P[4]), *i3 = x + 3 * std::int64_t(P[6]);
-    const double *j0 = x + 3 * std::int64_t(P[1]), *j1 = x + 3 * std::int64_t(P[3]),
-                 *j2 = x + 3 * std::int64_t(P[5]), *j3 = x + 3 * std::int64_t(P[7]);
-    const B dx = B{j0[0], j1[0], j2[0], j3[0]} - B{i0[0], i1[0], i2[0], i3[0]};
-    const B dy = B{j0[1], j1[1], j2[1], j3[1]} - B{i0[1], i1[1], i2[1], i3[1]};
-    const B dz = B{j0[2], j1[2], j2[2], j3[2]} - B{i0[2], i1[2], i2[2], i3[2]};
+    B dx, dy, dz, unused;
+    transpose4<Arch>(node(P[1]) - node(P[0]), node(P[3]) - node(P[2]), node(P[5]) - node(P[4]),
+                     node(P[7]) - node(P[6]), dx, dy, dz, unused);
     const B rest = B::load_unaligned(L.rest + l);
     const B ks = B::load_unaligned(L.ks + l);
     const B a = xsimd::abs(xsimd::sqrt(dx * dx + dy * dy + dz * dz) - rest);
