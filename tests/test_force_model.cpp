@@ -2,6 +2,7 @@
 // loads, assembled Jacobians against finite differences, the matrix-free implicit operator against
 // the assembled matrix, and threads giving the same forces.
 
+#include <cstdlib>
 #include <random>
 #include <string>
 
@@ -91,6 +92,19 @@ TEST(ForceModel, GravityAndExternalForcesAreAdded) {
 // energy: on a jittered lattice stretched and compressed past the bilinear switch, with random
 // velocities, for both damping models, linear and bilinear links, one and two threads, with fixed
 // nodes (so the loops see several link ranges) and a link of zero length.
+TEST(ForceModel, SimdInstructionSetFollowsTheCpuAndTheCap) {
+  // The kernels compiled for AVX-512VL where the CPU has it, unless FSM_SIMD=avx2 caps them (ctest
+  // runs the Simd tests twice: ForceModel.SimdKernelsOnAvx2 with the cap), so that both sets of
+  // kernels meet the scalar loops on an AVX-512 machine.
+  const std::string isa = detail::simd::instruction_set();
+  if (isa == "none") GTEST_SKIP() << "no SIMD kernel for this CPU or build";
+  const char* cap = std::getenv("FSM_SIMD");
+  const bool capped = cap != nullptr && std::string(cap) == "avx2";
+  const bool avx512 = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
+                      __builtin_cpu_supports("avx512dq");
+  EXPECT_EQ(isa, avx512 && !capped ? "avx2+fma (avx512vl)" : "avx2+fma");
+}
+
 TEST(ForceModel, SimdLinkKernelMatchesTheScalarLoop) {
   // Without AVX2+FMA (or without xsimd at build time) Options::simd runs the scalar loops, so
   // there is nothing to compare; the scalar loops have their own tests.

@@ -1,6 +1,9 @@
 // Run-time choice of the link and element kernels (compiled with the library's baseline flags: it
 // must run on any x86-64 CPU, so it only asks the CPU what it has).
 
+#include <cstdlib>
+#include <cstring>
+
 #include "fsm/detail/simd_links.hpp"
 #include "fsm/detail/simd_tets.hpp"
 
@@ -15,48 +18,104 @@ TetForceKernel avx2_tet_force_kernel() noexcept;
 TetEnergyKernel avx2_tet_energy_kernel() noexcept;
 TetSpreadKernel avx2_tet_spread_kernel() noexcept;
 TetGatherKernel avx2_tet_gather_kernel() noexcept;
+#if defined(FSM_SIMD_AVX512)
+LinkForceKernel avx512_link_force_kernel(bool bilinear, bool along_link) noexcept;
+LinkPrepareKernel avx512_link_prepare_kernel(bool bilinear, bool along_link) noexcept;
+LinkApplyKernel avx512_link_apply_kernel() noexcept;
+LinkEnergyKernel avx512_link_energy_kernel() noexcept;
+TetForceKernel avx512_tet_force_kernel() noexcept;
+TetEnergyKernel avx512_tet_energy_kernel() noexcept;
+TetSpreadKernel avx512_tet_spread_kernel() noexcept;
+TetGatherKernel avx512_tet_gather_kernel() noexcept;
+#endif
 
 namespace {
-bool has_avx2_fma() noexcept {
-  static const bool yes = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-  return yes;
+enum class Level { none, avx2, avx512 };
+
+// What the CPU runs: the AVX2 + FMA kernels, or the same compiled for AVX-512VL where the CPU has
+// it (and this build made them). The environment variable FSM_SIMD=avx2 keeps the AVX2 kernels on
+// an AVX-512 CPU (the tests run both; a user can compare). Read once.
+Level level() noexcept {
+  static const Level chosen = [] {
+    if (!(__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma"))) return Level::none;
+#if defined(FSM_SIMD_AVX512)
+    const char* cap = std::getenv("FSM_SIMD");
+    const bool capped = cap != nullptr && std::strcmp(cap, "avx2") == 0;
+    if (!capped && __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
+        __builtin_cpu_supports("avx512dq"))
+      return Level::avx512;
+#endif
+    return Level::avx2;
+  }();
+  return chosen;
+}
+
+// The kernel of the chosen level: `avx512` where it was chosen, else `avx2`, or none.
+template <class K>
+K pick(K avx2, K avx512) noexcept {
+  switch (level()) {
+    case Level::avx512:
+      return avx512;
+    case Level::avx2:
+      return avx2;
+    case Level::none:
+      break;
+  }
+  return nullptr;
 }
 }  // namespace
 
+// The kernel `name` of the chosen level (no AVX-512 file in this build: the AVX2 one).
+#if defined(FSM_SIMD_AVX512)
+#define FSM_PICK(call) pick(avx2_##call, avx512_##call)
+#else
+#define FSM_PICK(call) pick(avx2_##call, avx2_##call)
+#endif
+
 LinkForceKernel link_force_kernel(bool bilinear, bool along_link) noexcept {
-  return has_avx2_fma() ? avx2_link_force_kernel(bilinear, along_link) : nullptr;
+  return FSM_PICK(link_force_kernel(bilinear, along_link));
 }
 
 LinkPrepareKernel link_prepare_kernel(bool bilinear, bool along_link) noexcept {
-  return has_avx2_fma() ? avx2_link_prepare_kernel(bilinear, along_link) : nullptr;
+  return FSM_PICK(link_prepare_kernel(bilinear, along_link));
 }
 
 LinkApplyKernel link_apply_kernel() noexcept {
-  return has_avx2_fma() ? avx2_link_apply_kernel() : nullptr;
+  return FSM_PICK(link_apply_kernel());
 }
 
 LinkEnergyKernel link_energy_kernel() noexcept {
-  return has_avx2_fma() ? avx2_link_energy_kernel() : nullptr;
+  return FSM_PICK(link_energy_kernel());
 }
 
 TetForceKernel tet_force_kernel() noexcept {
-  return has_avx2_fma() ? avx2_tet_force_kernel() : nullptr;
+  return FSM_PICK(tet_force_kernel());
 }
 
 TetEnergyKernel tet_energy_kernel() noexcept {
-  return has_avx2_fma() ? avx2_tet_energy_kernel() : nullptr;
+  return FSM_PICK(tet_energy_kernel());
 }
 
 TetSpreadKernel tet_spread_kernel() noexcept {
-  return has_avx2_fma() ? avx2_tet_spread_kernel() : nullptr;
+  return FSM_PICK(tet_spread_kernel());
 }
 
 TetGatherKernel tet_gather_kernel() noexcept {
-  return has_avx2_fma() ? avx2_tet_gather_kernel() : nullptr;
+  return FSM_PICK(tet_gather_kernel());
 }
 
+#undef FSM_PICK
+
 const char* instruction_set() noexcept {
-  return has_avx2_fma() ? "avx2+fma" : "none";
+  switch (level()) {
+    case Level::avx512:
+      return "avx2+fma (avx512vl)";
+    case Level::avx2:
+      return "avx2+fma";
+    case Level::none:
+      break;
+  }
+  return "none";
 }
 #else
 LinkForceKernel link_force_kernel(bool, bool) noexcept {

@@ -1,0 +1,21 @@
+#pragma once
+
+// The instruction set of the *_avx512.cpp kernel files: xsimd's AVX2 + FMA batches (four doubles),
+// compiled with AVX-512VL so that the compiler has 32 vector registers and the EVEX forms. A type
+// of its own, so that every template instantiated in those files (the kernels' and xsimd's) differs
+// from the AVX2 files' and cannot be merged with them at link time: an AVX2-only CPU never runs an
+// EVEX instruction. Include only in files compiled with -mavx512f -mavx512vl -mavx512dq.
+
+#include <xsimd/xsimd.hpp>
+
+namespace fsm::detail::simd {
+
+struct Avx2Evex : xsimd::fma3<xsimd::avx2> {
+  static constexpr char const* name() noexcept { return "avx2+fma (avx512vl)"; }
+};
+
+}  // namespace fsm::detail::simd
+
+namespace xsimd::types {
+XSIMD_DECLARE_SIMD_REGISTER_ALIAS(fsm::detail::simd::Avx2Evex, fma3<avx2>);
+}  // namespace xsimd::types
