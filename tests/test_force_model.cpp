@@ -88,10 +88,6 @@ TEST(ForceModel, GravityAndExternalForcesAreAdded) {
   EXPECT_TRUE(near(forces.inverse_masses()[1], 500.0, 1e-14));
 }
 
-// The SIMD link kernels (Options::simd, where the CPU has them) give the scalar loops' forces and
-// energy: on a jittered lattice stretched and compressed past the bilinear switch, with random
-// velocities, for both damping models, linear and bilinear links, one and two threads, with fixed
-// nodes (so the loops see several link ranges) and a link of zero length.
 TEST(ForceModel, SimdInstructionSetFollowsTheCpuAndTheCap) {
   // The kernels compiled for AVX-512VL where the CPU has it, unless FSM_SIMD=avx2 caps them (ctest
   // runs the Simd tests twice: ForceModel.SimdKernelsOnAvx2 with the cap), so that both sets of
@@ -104,6 +100,11 @@ TEST(ForceModel, SimdInstructionSetFollowsTheCpuAndTheCap) {
                       __builtin_cpu_supports("avx512dq");
   EXPECT_EQ(isa, avx512 && !capped ? "avx2+fma (avx512vl)" : "avx2+fma");
 }
+
+// The SIMD link kernels (Options::simd, where the CPU has them) give the scalar loops' forces and
+// energy: on a jittered lattice stretched and compressed past the bilinear switch, with random
+// velocities, for both damping models, linear and bilinear links, one and two threads, with fixed
+// nodes (so the loops see several link ranges) and a link of zero length.
 
 TEST(ForceModel, SimdLinkKernelMatchesTheScalarLoop) {
   // Without AVX2+FMA (or without xsimd at build time) Options::simd runs the scalar loops, so

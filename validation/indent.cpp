@@ -413,7 +413,7 @@ int run(const Args& a) {
       json_number(sample_f.back()).c_str(), sample_d.size(), a.law.c_str(),
       a.law == "continuum" ? a.nu : 0.0, softened, inverted_steps,
       json_number(contact ? max_penetration : std::nan("")).c_str(),
-      json_number(contact ? max_face_penetration : std::nan("")).c_str(),
+      json_number(contact && !faces.empty() ? max_face_penetration : std::nan("")).c_str(),
       double(iterations) / double(std::max(steps, 1L)), unconverged, a.smoothing.c_str(),
       a.smoothing == "element" ? 1.0 : a.element_share);
   return finite && diverged == 0 ? 0 : 3;

@@ -145,8 +145,8 @@ class ForceModel {
     Scalar drag{0};
     /// Run the link loops (the forces, and the implicit solve's link blocks and products) and the
     /// continuum law's element loops (forces, energy) on the SIMD kernels when the CPU has them
-    /// (AVX2 with FMA; double only: detail/simd_links.hpp, detail/simd_tets.hpp); false: the
-    /// scalar loops, the reference. Both give the same results to rounding.
+    /// (AVX2 with FMA, or AVX-512VL; double only: detail/simd_links.hpp, detail/simd_tets.hpp);
+    /// false: the scalar loops, the reference. Both give the same results to rounding.
     bool simd{true};
     /// Continuum elements whose shape quality (6 sqrt(2) V / l_rms^3 at rest: 1 for a regular
     /// tetrahedron, 0 for a flat one) is below this get an exact-shape element tangent in the

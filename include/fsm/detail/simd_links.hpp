@@ -54,7 +54,9 @@ LinkPrepareKernel link_prepare_kernel(bool bilinear, bool along_link) noexcept;
 /// The apply kernel for this CPU, or nullptr.
 LinkApplyKernel link_apply_kernel() noexcept;
 
-/// The instruction set of the kernels link_force_kernel() returns ("avx2+fma"), or "none".
+/// The instruction set of the kernels link_force_kernel() returns: "avx2+fma", "avx2+fma
+/// (avx512vl)" (the same kernels compiled for AVX-512VL, chosen where the CPU has it unless the
+/// environment variable FSM_SIMD is "avx2"; any other value is ignored), or "none".
 const char* instruction_set() noexcept;
 
 }  // namespace fsm::detail::simd

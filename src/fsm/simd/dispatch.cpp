@@ -50,26 +50,15 @@ Level level() noexcept {
   return chosen;
 }
 
-// The kernel of the chosen level: `avx512` where it was chosen, else `avx2`, or none.
-template <class K>
-K pick(K avx2, K avx512) noexcept {
-  switch (level()) {
-    case Level::avx512:
-      return avx512;
-    case Level::avx2:
-      return avx2;
-    case Level::none:
-      break;
-  }
-  return nullptr;
-}
 }  // namespace
 
-// The kernel `name` of the chosen level (no AVX-512 file in this build: the AVX2 one).
+// The kernel `call` returns at the chosen level, nullptr at none; only that level's getter runs
+// (the getters' files are compiled with their instruction sets).
 #if defined(FSM_SIMD_AVX512)
-#define FSM_PICK(call) pick(avx2_##call, avx512_##call)
+#define FSM_PICK(call) \
+  (level() == Level::avx512 ? avx512_##call : level() == Level::avx2 ? avx2_##call : nullptr)
 #else
-#define FSM_PICK(call) pick(avx2_##call, avx2_##call)
+#define FSM_PICK(call) (level() == Level::avx2 ? avx2_##call : nullptr)
 #endif
 
 LinkForceKernel link_force_kernel(bool bilinear, bool along_link) noexcept {

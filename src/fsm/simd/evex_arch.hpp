@@ -2,9 +2,12 @@
 
 // The instruction set of the *_avx512.cpp kernel files: xsimd's AVX2 + FMA batches (four doubles),
 // compiled with AVX-512VL so that the compiler has 32 vector registers and the EVEX forms. A type
-// of its own, so that every template instantiated in those files (the kernels' and xsimd's) differs
-// from the AVX2 files' and cannot be merged with them at link time: an AVX2-only CPU never runs an
-// EVEX instruction. Include only in files compiled with -mavx512f -mavx512vl -mavx512dq.
+// of its own, so that the kernels and the xsimd templates they instantiate on it differ from the
+// AVX2 files' and cannot be merged with them at link time (an AVX2-only CPU must never run an EVEX
+// instruction). Not quite everything: xsimd's explicit specializations for the base types (the AVX
+// registers' conversions) are shared; optimised, they are inlined (`nm` of the Release objects
+// finds no common symbol), but an unoptimised build may emit them out of line in both files.
+// Include only in files compiled with -mavx512f -mavx512vl -mavx512dq.
 
 #include <xsimd/xsimd.hpp>
 
