@@ -10,24 +10,21 @@
 namespace fsm::detail::simd {
 
 #if defined(FSM_SIMD_AVX2)
-LinkForceKernel avx2_link_force_kernel(bool bilinear, bool along_link) noexcept;
-LinkPrepareKernel avx2_link_prepare_kernel(bool bilinear, bool along_link) noexcept;
-LinkApplyKernel avx2_link_apply_kernel() noexcept;
-LinkEnergyKernel avx2_link_energy_kernel() noexcept;
-TetForceKernel avx2_tet_force_kernel() noexcept;
-TetEnergyKernel avx2_tet_energy_kernel() noexcept;
-TetSpreadKernel avx2_tet_spread_kernel() noexcept;
-TetGatherKernel avx2_tet_gather_kernel() noexcept;
+// The getters each *_<isa>.cpp file defines (FSM_SIMD_LINK_GETTERS, FSM_SIMD_TET_GETTERS).
+#define FSM_SIMD_DECLARE_GETTERS(isa)                                                   \
+  LinkForceKernel isa##_link_force_kernel(bool bilinear, bool along_link) noexcept;     \
+  LinkPrepareKernel isa##_link_prepare_kernel(bool bilinear, bool along_link) noexcept; \
+  LinkApplyKernel isa##_link_apply_kernel() noexcept;                                   \
+  LinkEnergyKernel isa##_link_energy_kernel() noexcept;                                 \
+  TetForceKernel isa##_tet_force_kernel() noexcept;                                     \
+  TetEnergyKernel isa##_tet_energy_kernel() noexcept;                                   \
+  TetSpreadKernel isa##_tet_spread_kernel() noexcept;                                   \
+  TetGatherKernel isa##_tet_gather_kernel() noexcept;
+FSM_SIMD_DECLARE_GETTERS(avx2)
 #if defined(FSM_SIMD_AVX512)
-LinkForceKernel avx512_link_force_kernel(bool bilinear, bool along_link) noexcept;
-LinkPrepareKernel avx512_link_prepare_kernel(bool bilinear, bool along_link) noexcept;
-LinkApplyKernel avx512_link_apply_kernel() noexcept;
-LinkEnergyKernel avx512_link_energy_kernel() noexcept;
-TetForceKernel avx512_tet_force_kernel() noexcept;
-TetEnergyKernel avx512_tet_energy_kernel() noexcept;
-TetSpreadKernel avx512_tet_spread_kernel() noexcept;
-TetGatherKernel avx512_tet_gather_kernel() noexcept;
+FSM_SIMD_DECLARE_GETTERS(avx512)
 #endif
+#undef FSM_SIMD_DECLARE_GETTERS
 
 namespace {
 enum class Level { none, avx2, avx512 };

@@ -396,4 +396,24 @@ double link_energy(const LinkArrays& L, const double* x, std::int32_t num_nodes,
   return e;
 }
 
+// The getters of one instruction set's link kernels (`isa`_link_force_kernel, ...), defined by its
+// *_<isa>.cpp file with its arch type; dispatch.cpp declares them (FSM_SIMD_DECLARE_GETTERS).
+#define FSM_SIMD_LINK_GETTERS(isa, Arch)                                                      \
+  LinkForceKernel isa##_link_force_kernel(bool bilinear, bool along_link) noexcept {          \
+    if (bilinear)                                                                             \
+      return along_link ? &link_forces<Arch, true, true> : &link_forces<Arch, true, false>;   \
+    return along_link ? &link_forces<Arch, false, true> : &link_forces<Arch, false, false>;   \
+  }                                                                                           \
+  LinkPrepareKernel isa##_link_prepare_kernel(bool bilinear, bool along_link) noexcept {      \
+    if (bilinear)                                                                             \
+      return along_link ? &link_prepare<Arch, true, true> : &link_prepare<Arch, true, false>; \
+    return along_link ? &link_prepare<Arch, false, true> : &link_prepare<Arch, false, false>; \
+  }                                                                                           \
+  LinkApplyKernel isa##_link_apply_kernel() noexcept {                                        \
+    return &link_apply<Arch>;                                                                 \
+  }                                                                                           \
+  LinkEnergyKernel isa##_link_energy_kernel() noexcept {                                      \
+    return &link_energy<Arch>;                                                                \
+  }
+
 }  // namespace fsm::detail::simd

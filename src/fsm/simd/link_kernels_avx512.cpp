@@ -7,24 +7,6 @@
 
 namespace fsm::detail::simd {
 
-LinkForceKernel avx512_link_force_kernel(bool bilinear, bool along_link) noexcept {
-  if (bilinear)
-    return along_link ? &link_forces<Avx2Evex, true, true> : &link_forces<Avx2Evex, true, false>;
-  return along_link ? &link_forces<Avx2Evex, false, true> : &link_forces<Avx2Evex, false, false>;
-}
-
-LinkPrepareKernel avx512_link_prepare_kernel(bool bilinear, bool along_link) noexcept {
-  if (bilinear)
-    return along_link ? &link_prepare<Avx2Evex, true, true> : &link_prepare<Avx2Evex, true, false>;
-  return along_link ? &link_prepare<Avx2Evex, false, true> : &link_prepare<Avx2Evex, false, false>;
-}
-
-LinkApplyKernel avx512_link_apply_kernel() noexcept {
-  return &link_apply<Avx2Evex>;
-}
-
-LinkEnergyKernel avx512_link_energy_kernel() noexcept {
-  return &link_energy<Avx2Evex>;
-}
+FSM_SIMD_LINK_GETTERS(avx512, Avx2Evex)
 
 }  // namespace fsm::detail::simd

@@ -249,4 +249,19 @@ void tet_gather(const std::int32_t* nodes, const double* grad, const double* s, 
   }
 }
 
+// The getters of one instruction set's element kernels, as FSM_SIMD_LINK_GETTERS.
+#define FSM_SIMD_TET_GETTERS(isa, Arch)                \
+  TetForceKernel isa##_tet_force_kernel() noexcept {   \
+    return &tet_forces<Arch>;                          \
+  }                                                    \
+  TetEnergyKernel isa##_tet_energy_kernel() noexcept { \
+    return &tet_energy<Arch>;                          \
+  }                                                    \
+  TetSpreadKernel isa##_tet_spread_kernel() noexcept { \
+    return &tet_spread<Arch>;                          \
+  }                                                    \
+  TetGatherKernel isa##_tet_gather_kernel() noexcept { \
+    return &tet_gather<Arch>;                          \
+  }
+
 }  // namespace fsm::detail::simd

@@ -6,20 +6,6 @@ namespace fsm::detail::simd {
 
 using Avx2 = xsimd::fma3<xsimd::avx2>;
 
-TetForceKernel avx2_tet_force_kernel() noexcept {
-  return &tet_forces<Avx2>;
-}
-
-TetEnergyKernel avx2_tet_energy_kernel() noexcept {
-  return &tet_energy<Avx2>;
-}
-
-TetSpreadKernel avx2_tet_spread_kernel() noexcept {
-  return &tet_spread<Avx2>;
-}
-
-TetGatherKernel avx2_tet_gather_kernel() noexcept {
-  return &tet_gather<Avx2>;
-}
+FSM_SIMD_TET_GETTERS(avx2, Avx2)
 
 }  // namespace fsm::detail::simd

@@ -6,20 +6,6 @@
 
 namespace fsm::detail::simd {
 
-TetForceKernel avx512_tet_force_kernel() noexcept {
-  return &tet_forces<Avx2Evex>;
-}
-
-TetEnergyKernel avx512_tet_energy_kernel() noexcept {
-  return &tet_energy<Avx2Evex>;
-}
-
-TetSpreadKernel avx512_tet_spread_kernel() noexcept {
-  return &tet_spread<Avx2Evex>;
-}
-
-TetGatherKernel avx512_tet_gather_kernel() noexcept {
-  return &tet_gather<Avx2Evex>;
-}
+FSM_SIMD_TET_GETTERS(avx512, Avx2Evex)
 
 }  // namespace fsm::detail::simd
