@@ -93,6 +93,8 @@ TEST(ForceModel, SimdInstructionSetFollowsTheCpuAndTheCap) {
   // runs the Simd tests twice: ForceModel.SimdKernelsOnAvx2 with the cap), so that both sets of
   // kernels meet the scalar loops on an AVX-512 machine.
   const std::string isa = detail::simd::instruction_set();
+  // A CPU without AVX2 and FMA, or a build without xsimd: no kernel to choose (the scalar loops
+  // run, and have their own tests).
   if (isa == "none") GTEST_SKIP() << "no SIMD kernel for this CPU or build";
   const char* cap = std::getenv("FSM_SIMD");
   const bool capped = cap != nullptr && std::string(cap) == "avx2";
@@ -105,7 +107,6 @@ TEST(ForceModel, SimdInstructionSetFollowsTheCpuAndTheCap) {
 // energy: on a jittered lattice stretched and compressed past the bilinear switch, with random
 // velocities, for both damping models, linear and bilinear links, one and two threads, with fixed
 // nodes (so the loops see several link ranges) and a link of zero length.
-
 TEST(ForceModel, SimdLinkKernelMatchesTheScalarLoop) {
   // Without AVX2+FMA (or without xsimd at build time) Options::simd runs the scalar loops, so
   // there is nothing to compare; the scalar loops have their own tests.
