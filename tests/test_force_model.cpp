@@ -8,6 +8,7 @@
 
 #include "common.hpp"
 #include "fsm/detail/simd_links.hpp"
+#include "fsm/detail/simd_solver.hpp"
 #include "fsm/detail/simd_tets.hpp"
 
 namespace fsm::test {
@@ -225,6 +226,166 @@ TEST(ForceModel, SimdImplicitLinkKernelsMatchTheScalarLoops) {
                               yb);  // the same blocks: only the product differs
           EXPECT_LE((ya - yb).cwiseAbs().maxCoeff(), 1e-13 * ya.cwiseAbs().maxCoeff());
         }
+}
+
+// The CG kernels (detail/simd_solver.hpp) against the scalar formulas they replace: the
+// preconditioner from 3 x 3 blocks that are positive definite, indefinite, singular or not finite
+// (those fall back to the diagonal) and from the diagonal alone; the update, z = P r, r^T z, the
+// direction and the dot product; for 1 to 13 nodes and 67 (every remainder after the batches of
+// four), with guard values after each array that no kernel may touch.
+TEST(ForceModel, SimdSolverKernelsMatchTheScalarLoops) {
+  namespace simd = detail::simd;
+  if (simd::cg_update_kernel() == nullptr)
+    GTEST_SKIP() << "no SIMD CG kernel for this CPU or build";
+  std::mt19937 rng(9);
+  std::normal_distribution<double> g(0.0, 1.0);
+  constexpr double guard = 12345.0;
+  std::vector<int> sizes{67};
+  for (int n = 1; n <= 13; ++n) sizes.push_back(n);
+  for (const int n : sizes)
+    for (const bool blocks : {true, false}) {
+      SCOPED_TRACE(testing::Message() << "n " << n << " blocks " << blocks);
+      const auto n3 = std::size_t(3 * n);
+      auto random = [&](std::size_t count) {
+        std::vector<double> v(count + 4, guard);
+        for (std::size_t k = 0; k < count; ++k) v[k] = g(rng);
+        return v;
+      };
+      std::vector<double> B(6 * std::size_t(n)), diag = random(n3);
+      for (std::size_t k = 0; k < n3; ++k) diag[k] = 1.0 + std::abs(diag[k]);
+      for (int i = 0; i < n; ++i) {
+        // A B^T + c I: definite for c > 0, indefinite for c well below 0; one singular, one NaN.
+        Eigen::Matrix3d A = Eigen::Matrix3d::NullaryExpr([&] { return g(rng); });
+        Eigen::Matrix3d K =
+            A * A.transpose() + (i % 5 == 2 ? -4.0 : 0.5) * Eigen::Matrix3d::Identity();
+        if (i % 7 == 3) K.setZero();
+        if (i % 11 == 6) K(0, 0) = std::numeric_limits<double>::infinity();
+        const double e[6] = {K(0, 0), K(1, 1), K(2, 2), K(0, 1), K(0, 2), K(1, 2)};
+        std::copy(e, e + 6, B.begin() + 6 * i);
+      }
+      // The reference: each node's inverse block (xx yy zz xy xz yz), as the integrator's scalar
+      // loop computes it.
+      std::vector<double> ref(6 * std::size_t(n));
+      for (int i = 0; i < n; ++i) {
+        double* o = &ref[6 * std::size_t(i)];
+        const double* d = &diag[3 * std::size_t(i)];
+        o[0] = 1 / d[0], o[1] = 1 / d[1], o[2] = 1 / d[2], o[3] = o[4] = o[5] = 0;
+        if (!blocks) continue;
+        const double* k = &B[6 * std::size_t(i)];
+        const double a = k[0], b = k[1], c = k[2], x = k[3], y = k[4], f = k[5];
+        const double c00 = b * c - f * f, c01 = y * f - x * c, c02 = x * f - b * y;
+        const double det = a * c00 + x * c01 + y * c02;
+        if (det > 0 && a > 0 && a * b - x * x > 0 && std::isfinite(det)) {
+          o[0] = c00 / det, o[1] = (a * c - y * y) / det, o[2] = (a * b - x * x) / det;
+          o[3] = c01 / det, o[4] = c02 / det, o[5] = (x * y - a * f) / det;
+        }
+      }
+      const auto size = std::size_t(simd::precondition_size(n));
+      std::vector<double> inv(size + 4, guard);
+      simd::precondition_kernel()(n, blocks ? B.data() : nullptr, diag.data(), inv.data());
+      for (int i = 0; i < n; ++i)
+        for (int c = 0; c < 6; ++c) {
+          const double got = inv[6 * std::size_t(i & ~3) + 4 * std::size_t(c) + std::size_t(i & 3)];
+          const double want = ref[6 * std::size_t(i) + std::size_t(c)];
+          EXPECT_LE(std::abs(got - want), 1e-12 * (std::abs(want) + 1e-300)) << i << " " << c;
+        }
+      EXPECT_EQ(inv[size], guard);
+      // The update with alpha, and without p (z = P r only).
+      const double alpha = 0.37;
+      std::vector<double> p = random(n3), q = random(n3), dv = random(n3), r = random(n3),
+                          z = random(n3);
+      std::vector<double> dv_ref = dv, r_ref = r, z_ref(n3);
+      double rz_ref = 0;
+      for (std::size_t k = 0; k < n3; ++k) {
+        dv_ref[k] += alpha * p[k];
+        r_ref[k] -= alpha * q[k];
+      }
+      for (int i = 0; i < n; ++i) {
+        const double* o = &ref[6 * std::size_t(i)];
+        const double* ri = &r_ref[3 * std::size_t(i)];
+        double* zi = &z_ref[3 * std::size_t(i)];
+        zi[0] = o[0] * ri[0] + o[3] * ri[1] + o[4] * ri[2];
+        zi[1] = o[3] * ri[0] + o[1] * ri[1] + o[5] * ri[2];
+        zi[2] = o[4] * ri[0] + o[5] * ri[1] + o[2] * ri[2];
+        rz_ref += ri[0] * zi[0] + ri[1] * zi[1] + ri[2] * zi[2];
+      }
+      double scale = 0;
+      for (std::size_t k = 0; k < n3; ++k) scale += std::abs(r_ref[k] * z_ref[k]);
+      const double rz = simd::cg_update_kernel()(n, alpha, p.data(), q.data(), dv.data(), r.data(),
+                                                 inv.data(), z.data());
+      EXPECT_LE(std::abs(rz - rz_ref), 1e-13 * scale);
+      for (std::size_t k = 0; k < n3; ++k) {
+        EXPECT_EQ(dv[k], dv_ref[k]) << k;
+        EXPECT_EQ(r[k], r_ref[k]) << k;
+        EXPECT_LE(std::abs(z[k] - z_ref[k]), 1e-12 * (std::abs(z_ref[k]) + 1e-300)) << k;
+      }
+      for (auto* v : {&dv, &r, &z}) EXPECT_EQ((*v)[n3], guard);
+      std::fill(z.begin(), z.begin() + std::ptrdiff_t(n3), 0.0);
+      const std::vector<double> r_before = r;
+      EXPECT_LE(std::abs(simd::cg_update_kernel()(n, 0.0, nullptr, nullptr, nullptr, r.data(),
+                                                  inv.data(), z.data()) -
+                         rz_ref),
+                1e-13 * scale);
+      EXPECT_EQ(r, r_before);
+      for (std::size_t k = 0; k < n3; ++k)
+        EXPECT_LE(std::abs(z[k] - z_ref[k]), 1e-12 * (std::abs(z_ref[k]) + 1e-300)) << k;
+      EXPECT_EQ(z[n3], guard);
+      // The direction and the dot product.
+      const double beta = -1.3;
+      std::vector<double> p_ref = p;
+      double pq_ref = 0, pq_scale = 0;
+      for (std::size_t k = 0; k < n3; ++k) {
+        p_ref[k] = z[k] + beta * p[k];
+        pq_ref += p_ref[k] * q[k];
+        pq_scale += std::abs(p_ref[k] * q[k]);
+      }
+      simd::cg_direction_kernel()(std::int64_t(n3), beta, z.data(), p.data());
+      EXPECT_EQ(p, p_ref);
+      EXPECT_LE(std::abs(simd::dot_kernel()(std::int64_t(n3), p.data(), q.data()) - pq_ref),
+                1e-13 * pq_scale);
+    }
+}
+
+// The implicit solve on the CG kernels gives the scalar path's velocities and iteration counts
+// (both preconditioners), over steps of a strained random model with fixed nodes.
+TEST(ForceModel, SimdConjugateGradientMatchesTheScalarSolve) {
+  if (detail::simd::cg_update_kernel() == nullptr)
+    GTEST_SKIP() << "no SIMD CG kernel for this CPU or build";
+  using IE = ImplicitEulerIntegrator<double>;
+  std::mt19937 rng(31);
+  std::normal_distribution<double> g(0.0, 1.0);
+  SphereModel<double> start = random_model<double>(rng, {5, 4, 3}, 0.25, true);
+  for (Index i = 0; i < start.num_nodes(); ++i) {
+    if (i % 9 == 2) start.set_fixed(i);
+    for (int c = 0; c < 3; ++c) start.positions()(i, c) *= 1.0 + 0.05 * g(rng);
+  }
+  for (const IE::Preconditioner pc :
+       {IE::Preconditioner::block_jacobi, IE::Preconditioner::jacobi}) {
+    SCOPED_TRACE(testing::Message() << "preconditioner " << int(pc));
+    auto run = [&](bool use_simd, std::vector<int>& iterations) {
+      SphereModel<double> model = start;
+      ForceModel<double>::Options fo;
+      fo.simd = use_simd;
+      ForceModel<double> forces(model, fo);
+      IE::Options o;
+      o.preconditioner = pc;
+      o.tolerance = 1e-8;
+      IE ie(o);
+      ie.prepare(model);
+      for (int s = 0; s < 5; ++s) {
+        const IntegratorResult res = ie.step(model, forces, 1e-3);
+        EXPECT_TRUE(res.ok);
+        iterations.push_back(res.iterations);
+      }
+      return Positions<double>(model.velocities());
+    };
+    std::vector<int> it_scalar, it_simd;
+    const Positions<double> a = run(false, it_scalar), b = run(true, it_simd);
+    EXPECT_GT(it_scalar.front(), 3);
+    EXPECT_EQ(it_scalar, it_simd);
+    EXPECT_LE((a - b).cwiseAbs().maxCoeff(), 1e-9 * a.cwiseAbs().maxCoeff());
+    EXPECT_GT(a.cwiseAbs().maxCoeff(), 0.0);
+  }
 }
 
 // The continuum law's element kernels (Options::simd, where the CPU has them) give the scalar

@@ -8,6 +8,7 @@
 #include <type_traits>
 #include <vector>
 
+#include "fsm/detail/simd_solver.hpp"
 #include "fsm/integrator.hpp"
 
 namespace fsm {
@@ -22,10 +23,11 @@ namespace fsm {
 /// undamped model, more so at larger h).
 ///
 /// Solvers:
-/// - `conjugate_gradient` (default): matrix-free Jacobi-preconditioned CG on the per-link blocks
-///   of ForceModel::prepare_implicit(), warm-started from the previous steps, rows of fixed nodes
-///   filtered out. Allocates nothing per step (Eigen's own ConjugateGradient allocates its work
-///   vectors on every solve, which a real-time step must not do). Needs a symmetric Jacobian form.
+/// - `conjugate_gradient` (default): matrix-free CG (block-Jacobi or Jacobi preconditioned) on the
+///   per-link blocks of ForceModel::prepare_implicit(), warm-started from the previous steps, rows
+///   of fixed nodes filtered out. Allocates nothing per step (Eigen's own ConjugateGradient
+///   allocates its work vectors on every solve, which a real-time step must not do). Needs a
+///   symmetric Jacobian form.
 /// - `eigen_ldlt`: Eigen::SimplicialLDLT on the assembled matrix (symmetric form). Exact solve;
 ///   allocates per step: for reference and offline use.
 /// - `eigen_lu`: Eigen::SparseLU on the assembled matrix with the exact, non-symmetric Jacobian.
@@ -112,8 +114,18 @@ class ImplicitEulerIntegrator final : public Integrator<Scalar> {
 
   Options m_options;
   std::vector<Scalar> m_blocks;
-  // z = P^-1 r for the chosen preconditioner.
+  // The preconditioner P^-1 of the prepared system (m_pblocks or m_pinv; its inputs m_diag and,
+  // for block-Jacobi, m_pblocks).
+  void make_preconditioner(const SphereModel<Scalar>& model, ForceModel<Scalar>& forces) noexcept;
+  // z = P^-1 r for the chosen preconditioner (the scalar path).
   void precondition() noexcept;
+  // CG's vector work, on the SIMD kernels where there are (doubles, ForceModel::Options::simd,
+  // a CPU with AVX2 and FMA), else on Eigen's expressions: z = P^-1 r and r^T z; the update
+  // dv += alpha p, r -= alpha q, then z and r^T z; the direction p = z + beta p; p^T q.
+  Scalar precondition_dot() noexcept;
+  Scalar update(Scalar alpha) noexcept;
+  void new_direction(Scalar beta) noexcept;
+  Scalar curvature() noexcept;
 
   Positions<Scalar> m_rhs, m_diag, m_dv, m_r, m_z, m_p, m_q, m_x_end;
   // The velocity change of the step before the last (the warm start's extrapolation) and the
@@ -121,6 +133,15 @@ class ImplicitEulerIntegrator final : public Integrator<Scalar> {
   Positions<Scalar> m_dv_previous;
   Scalar m_previous_dt{0};
   std::vector<Scalar> m_pblocks;  // block-Jacobi: 6 per node (the inverse's xx yy zz xy xz yz)
+  // The SIMD path (set per solve; all null otherwise) and its preconditioner, grouped by four
+  // nodes (detail/simd_solver.hpp).
+  struct SimdKernels {
+    detail::simd::PreconditionKernel precondition{};
+    detail::simd::CgUpdateKernel update{};
+    detail::simd::CgDirectionKernel direction{};
+    detail::simd::DotKernel dot{};
+  } m_simd;
+  std::vector<double> m_pinv;
   Scalar m_last_dt{0};
 };
 

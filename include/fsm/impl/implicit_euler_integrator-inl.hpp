@@ -16,6 +16,8 @@ void ImplicitEulerIntegrator<Scalar>::prepare(const SphereModel<Scalar>& model) 
        {&m_rhs, &m_diag, &m_dv, &m_r, &m_z, &m_p, &m_q, &m_x_end, &m_dv_previous})
     w->setZero(n, 3);
   m_pblocks.assign(6 * std::size_t(n), Scalar(0));
+  m_pinv.assign(
+      std::is_same_v<Scalar, double> ? std::size_t(detail::simd::precondition_size(n)) : 0, 0.0);
   m_last_dt = m_previous_dt = Scalar(0);
 }
 
@@ -33,6 +35,87 @@ void ImplicitEulerIntegrator<Scalar>::precondition() noexcept {
     m_z(i, 1) = B[3] * rx + B[1] * ry + B[5] * rz;
     m_z(i, 2) = B[4] * rx + B[5] * ry + B[2] * rz;
   }
+}
+
+template <typename Scalar>
+void ImplicitEulerIntegrator<Scalar>::make_preconditioner(const SphereModel<Scalar>& model,
+                                                          ForceModel<Scalar>& forces) noexcept {
+  const Index n = model.num_nodes();
+  const bool blocks = m_options.preconditioner == Preconditioner::block_jacobi;
+  // The diagonal blocks (symmetric: 6 scalars).
+  if (blocks) forces.implicit_diagonal_blocks(model, m_blocks.data(), m_pblocks.data());
+  if constexpr (std::is_same_v<Scalar, double>) {
+    if (m_simd.precondition) {
+      m_simd.precondition(std::int32_t(n), blocks ? m_pblocks.data() : nullptr, m_diag.data(),
+                          m_pinv.data());
+      return;
+    }
+  }
+  if (!blocks) return;  // Jacobi: m_diag itself
+  // Inverted in place; a block that is not positive definite (a compressed link's indefinite
+  // part) falls back to its diagonal.
+  for (Index i = 0; i < n; ++i) {
+    Scalar* B = &m_pblocks[6 * std::size_t(i)];
+    const Scalar a = B[0], b = B[1], c = B[2], d = B[3], e = B[4], f = B[5];
+    const Scalar c00 = b * c - f * f, c01 = e * f - d * c, c02 = d * f - b * e;
+    const Scalar det = a * c00 + d * c01 + e * c02;
+    if (det > Scalar(0) && a > Scalar(0) && a * b - d * d > Scalar(0) && std::isfinite(det)) {
+      const Scalar s = Scalar(1) / det;
+      B[0] = c00 * s;
+      B[1] = (a * c - e * e) * s;
+      B[2] = (a * b - d * d) * s;
+      B[3] = c01 * s;
+      B[4] = c02 * s;
+      B[5] = (d * e - a * f) * s;
+    } else {
+      B[0] = Scalar(1) / m_diag(i, 0);
+      B[1] = Scalar(1) / m_diag(i, 1);
+      B[2] = Scalar(1) / m_diag(i, 2);
+      B[3] = B[4] = B[5] = Scalar(0);
+    }
+  }
+}
+
+template <typename Scalar>
+Scalar ImplicitEulerIntegrator<Scalar>::precondition_dot() noexcept {
+  if constexpr (std::is_same_v<Scalar, double>) {
+    if (m_simd.update)
+      return m_simd.update(std::int32_t(m_r.rows()), 0.0, nullptr, nullptr, nullptr, m_r.data(),
+                           m_pinv.data(), m_z.data());
+  }
+  precondition();
+  return m_r.cwiseProduct(m_z).sum();
+}
+
+template <typename Scalar>
+Scalar ImplicitEulerIntegrator<Scalar>::update(Scalar alpha) noexcept {
+  if constexpr (std::is_same_v<Scalar, double>) {
+    if (m_simd.update)
+      return m_simd.update(std::int32_t(m_r.rows()), alpha, m_p.data(), m_q.data(), m_dv.data(),
+                           m_r.data(), m_pinv.data(), m_z.data());
+  }
+  m_dv += alpha * m_p;
+  m_r -= alpha * m_q;
+  return precondition_dot();
+}
+
+template <typename Scalar>
+void ImplicitEulerIntegrator<Scalar>::new_direction(Scalar beta) noexcept {
+  if constexpr (std::is_same_v<Scalar, double>) {
+    if (m_simd.direction) {
+      m_simd.direction(std::int64_t(m_p.size()), beta, m_z.data(), m_p.data());
+      return;
+    }
+  }
+  m_p = m_z + beta * m_p;
+}
+
+template <typename Scalar>
+Scalar ImplicitEulerIntegrator<Scalar>::curvature() noexcept {
+  if constexpr (std::is_same_v<Scalar, double>) {
+    if (m_simd.dot) return m_simd.dot(std::int64_t(m_p.size()), m_p.data(), m_q.data());
+  }
+  return m_p.cwiseProduct(m_q).sum();
 }
 
 template <typename Scalar>
@@ -75,37 +158,21 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg(SphereModel<Scalar>& 
     if (fixed[std::size_t(i)]) m_dv.row(i).setZero();
   if (!m_dv.allFinite()) m_dv.setZero();
 
+  m_simd = {};
+  if constexpr (std::is_same_v<Scalar, double>) {
+    if (forces.options().simd && m_pinv.size() == std::size_t(detail::simd::precondition_size(n)))
+      m_simd = {detail::simd::precondition_kernel(), detail::simd::cg_update_kernel(),
+                detail::simd::cg_direction_kernel(), detail::simd::dot_kernel()};
+    if (!(m_simd.precondition && m_simd.update && m_simd.direction && m_simd.dot)) m_simd = {};
+  }
+
   // Contacts: solve with those penetrating at the start, then again (warm-started) with those
   // penetrating at the end while that set changes, at most max_contact_passes solves.
   int total = 0;
   bool converged = true;
   for (int pass = 0;; ++pass) {
     forces.prepare_implicit(model, dt, form, m_blocks.data(), m_rhs, m_diag, pass > 0);
-    if (m_options.preconditioner == Preconditioner::block_jacobi) {
-      // The diagonal blocks, inverted in place (symmetric: 6 scalars); a block that is not
-      // positive definite (a compressed link's indefinite part) falls back to its diagonal.
-      forces.implicit_diagonal_blocks(model, m_blocks.data(), m_pblocks.data());
-      for (Index i = 0; i < n; ++i) {
-        Scalar* B = &m_pblocks[6 * std::size_t(i)];
-        const Scalar a = B[0], b = B[1], c = B[2], d = B[3], e = B[4], f = B[5];
-        const Scalar c00 = b * c - f * f, c01 = e * f - d * c, c02 = d * f - b * e;
-        const Scalar det = a * c00 + d * c01 + e * c02;
-        if (det > Scalar(0) && a > Scalar(0) && a * b - d * d > Scalar(0) && std::isfinite(det)) {
-          const Scalar s = Scalar(1) / det;
-          B[0] = c00 * s;
-          B[1] = (a * c - e * e) * s;
-          B[2] = (a * b - d * d) * s;
-          B[3] = c01 * s;
-          B[4] = c02 * s;
-          B[5] = (d * e - a * f) * s;
-        } else {
-          B[0] = Scalar(1) / m_diag(i, 0);
-          B[1] = Scalar(1) / m_diag(i, 1);
-          B[2] = Scalar(1) / m_diag(i, 2);
-          B[3] = B[4] = B[5] = Scalar(0);
-        }
-      }
-    }
+    make_preconditioner(model, forces);
     const IntegratorResult r = solve_cg_pass(model, forces);
     total += r.iterations;
     converged = converged && r.converged;
@@ -138,14 +205,12 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg_pass(
   // r^T P^-1 r is not positive.
   const Scalar plain_target = m_options.tolerance * bnorm;
   m_r = m_rhs;
-  precondition();
-  const Scalar bz = m_r.cwiseProduct(m_z).sum();
+  const Scalar bz = precondition_dot();
   const bool weighted = bz > Scalar(0) && std::isfinite(bz);
   const Scalar target2 = weighted ? m_options.tolerance * m_options.tolerance * bz : Scalar(0);
   forces.apply_implicit(model, m_blocks.data(), m_dv, m_q);
   m_r = m_rhs - m_q;
-  precondition();
-  Scalar rz = m_r.cwiseProduct(m_z).sum();
+  Scalar rz = precondition_dot();
   // (Written so that a NaN residual goes into CG and fails there.)
   auto converged = [&](Scalar r_z) {
     return weighted && r_z > Scalar(0) ? r_z <= target2 : m_r.norm() <= plain_target;
@@ -156,18 +221,15 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg_pass(
     m_p = m_z;
     for (it = 1; it <= m_options.max_iterations; ++it) {
       forces.apply_implicit(model, m_blocks.data(), m_p, m_q);
-      const Scalar pq = m_p.cwiseProduct(m_q).sum();
+      const Scalar pq = curvature();
       if (!(pq > Scalar(0)) || !std::isfinite(pq)) {  // not positive definite, or NaN
         ok = false;
         break;
       }
       const Scalar alpha = rz / pq;
-      m_dv += alpha * m_p;
-      m_r -= alpha * m_q;
-      precondition();
-      const Scalar rz_new = m_r.cwiseProduct(m_z).sum();
+      const Scalar rz_new = update(alpha);
       if (converged(rz_new)) break;
-      m_p = m_z + (rz_new / rz) * m_p;
+      new_direction(rz_new / rz);
       rz = rz_new;
     }
     reached = it <= m_options.max_iterations;  // else the loop ran out at its cap

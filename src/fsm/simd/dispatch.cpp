@@ -5,12 +5,14 @@
 #include <cstring>
 
 #include "fsm/detail/simd_links.hpp"
+#include "fsm/detail/simd_solver.hpp"
 #include "fsm/detail/simd_tets.hpp"
 
 namespace fsm::detail::simd {
 
 #if defined(FSM_SIMD_AVX2)
-// The getters each *_<isa>.cpp file defines (FSM_SIMD_LINK_GETTERS, FSM_SIMD_TET_GETTERS).
+// The getters each *_<isa>.cpp file defines (FSM_SIMD_LINK_GETTERS, FSM_SIMD_TET_GETTERS,
+// FSM_SIMD_SOLVER_GETTERS).
 #define FSM_SIMD_DECLARE_GETTERS(isa)                                                   \
   LinkForceKernel isa##_link_force_kernel(bool bilinear, bool along_link) noexcept;     \
   LinkPrepareKernel isa##_link_prepare_kernel(bool bilinear, bool along_link) noexcept; \
@@ -19,7 +21,11 @@ namespace fsm::detail::simd {
   TetForceKernel isa##_tet_force_kernel() noexcept;                                     \
   TetEnergyKernel isa##_tet_energy_kernel() noexcept;                                   \
   TetSpreadKernel isa##_tet_spread_kernel() noexcept;                                   \
-  TetGatherKernel isa##_tet_gather_kernel() noexcept;
+  TetGatherKernel isa##_tet_gather_kernel() noexcept;                                   \
+  PreconditionKernel isa##_precondition_kernel() noexcept;                              \
+  CgUpdateKernel isa##_cg_update_kernel() noexcept;                                     \
+  CgDirectionKernel isa##_cg_direction_kernel() noexcept;                               \
+  DotKernel isa##_dot_kernel() noexcept;
 FSM_SIMD_DECLARE_GETTERS(avx2)
 #if defined(FSM_SIMD_AVX512)
 FSM_SIMD_DECLARE_GETTERS(avx512)
@@ -90,6 +96,22 @@ TetGatherKernel tet_gather_kernel() noexcept {
   return FSM_PICK(tet_gather_kernel());
 }
 
+PreconditionKernel precondition_kernel() noexcept {
+  return FSM_PICK(precondition_kernel());
+}
+
+CgUpdateKernel cg_update_kernel() noexcept {
+  return FSM_PICK(cg_update_kernel());
+}
+
+CgDirectionKernel cg_direction_kernel() noexcept {
+  return FSM_PICK(cg_direction_kernel());
+}
+
+DotKernel dot_kernel() noexcept {
+  return FSM_PICK(dot_kernel());
+}
+
 #undef FSM_PICK
 
 const char* instruction_set() noexcept {
@@ -126,6 +148,18 @@ TetSpreadKernel tet_spread_kernel() noexcept {
   return nullptr;
 }
 TetGatherKernel tet_gather_kernel() noexcept {
+  return nullptr;
+}
+PreconditionKernel precondition_kernel() noexcept {
+  return nullptr;
+}
+CgUpdateKernel cg_update_kernel() noexcept {
+  return nullptr;
+}
+CgDirectionKernel cg_direction_kernel() noexcept {
+  return nullptr;
+}
+DotKernel dot_kernel() noexcept {
   return nullptr;
 }
 const char* instruction_set() noexcept {
