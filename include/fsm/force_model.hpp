@@ -455,6 +455,7 @@ class ForceModel {
   Options m_options;
   Index m_num_nodes{0};
   std::vector<std::uint8_t> m_asleep, m_immobile;
+  std::vector<Index> m_immobile_nodes;  // the immobile ones' indices (capacity: refresh())
   std::vector<std::pair<Index, Index>> m_ranges;
   Scalar m_implicit_h{0};
   std::vector<Scalar> m_external;

@@ -429,6 +429,7 @@ void ForceModel<Scalar>::refresh(const SphereModel<Scalar>& model) {
   }
   if (m_asleep.size() != std::size_t(n)) m_asleep.assign(std::size_t(n), 0);
   m_immobile.resize(std::size_t(n));
+  m_immobile_nodes.reserve(std::size_t(n));
   m_inverse_mass.resize(n);
   m_force_link.assign(std::size_t(model.num_links()), 1);
   // Links inside a continuum region carry no force: the region's elements do.
@@ -497,9 +498,11 @@ template <typename Scalar>
 void ForceModel<Scalar>::update_mobility(const SphereModel<Scalar>& model) noexcept {
   const auto mass = model.masses();
   const auto fixed = model.fixed();
+  m_immobile_nodes.clear();  // (within its capacity)
   for (Index i = 0; i < m_num_nodes; ++i) {
     m_immobile[std::size_t(i)] = (fixed[i] || m_asleep[std::size_t(i)]) ? 1 : 0;
     m_inverse_mass[i] = m_immobile[std::size_t(i)] ? Scalar(0) : Scalar(1) / mass[i];
+    if (m_immobile[std::size_t(i)]) m_immobile_nodes.push_back(i);
   }
   update_ranges(model);
 }
@@ -987,11 +990,9 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
     rhs.row(hn.node) += r.transpose();
     diagonal.row(hn.node).array() += h2 * hn.stiffness + h * hn.damping;
   }
-  for (Index i = 0; i < model.num_nodes(); ++i) {
-    if (m_immobile[std::size_t(i)]) {
-      rhs.row(i).setZero();
-      diagonal.row(i).setOnes();
-    }
+  for (const Index i : m_immobile_nodes) {
+    rhs.row(i).setZero();
+    diagonal.row(i).setOnes();
   }
 }
 
@@ -1046,7 +1047,7 @@ void ForceModel<Scalar>::implicit_diagonal_blocks(const SphereModel<Scalar>& mod
                                                   const Scalar* blocks,
                                                   Scalar* out) const noexcept {
   (void)blocks;  // their diagonal blocks were kept by prepare_implicit()
-  const Index n = model.num_nodes();
+  (void)model;
   std::copy(m_link_node_blocks.begin(), m_link_node_blocks.end(), out);
   // a n n^T + b I on both ends of a contact between parts.
   auto add = [&](Index i, const Scalar* nv, Scalar a, Scalar b) {
@@ -1072,12 +1073,11 @@ void ForceModel<Scalar>::implicit_diagonal_blocks(const SphereModel<Scalar>& mod
     const Scalar zero[3] = {0, 0, 0};
     add(hn.node, zero, Scalar(0), h * h * hn.stiffness + h * hn.damping);
   }
-  for (Index i = 0; i < n; ++i)
-    if (m_immobile[std::size_t(i)]) {
-      Scalar* o = out + 6 * std::ptrdiff_t(i);
-      o[0] = o[1] = o[2] = Scalar(1);
-      o[3] = o[4] = o[5] = Scalar(0);
-    }
+  for (const Index i : m_immobile_nodes) {
+    Scalar* o = out + 6 * std::ptrdiff_t(i);
+    o[0] = o[1] = o[2] = Scalar(1);
+    o[3] = o[4] = o[5] = Scalar(0);
+  }
 }
 
 template <typename Scalar>
@@ -1093,10 +1093,26 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
     out[1] = md * mass[i] * pp[k + 1];
     out[2] = md * mass[i] * pp[k + 2];
   };
+  detail::WorkerPool* pool = m_pool.get();
+  const int T = pool ? std::min<int>(pool->size(), static_cast<int>(m_scratch.size())) : 1;
   detail::simd::LinkApplyKernel simd_apply = nullptr;
   if constexpr (std::is_same_v<Scalar, double>) {
     if (simd_ready(model.num_nodes())) simd_apply = detail::simd::link_apply_kernel();
-    if (simd_apply) pad_states(pp, nullptr, model.num_nodes());  // p into m_x4
+    // p into m_x4; on one thread, y = M p in the same pass (scatter_links' init then skipped).
+    if (simd_apply && T <= 1) {
+      Scalar* p4 = m_x4.data();
+      Scalar* out = y.data();
+      for (Index i = 0; i < model.num_nodes(); ++i) {
+        const std::ptrdiff_t k = 3 * std::ptrdiff_t(i);
+        const Scalar m = md * mass[i];
+        for (int c = 0; c < 3; ++c) {
+          p4[4 * std::ptrdiff_t(i) + c] = pp[k + c];
+          out[k + c] = m * pp[k + c];
+        }
+      }
+    } else if (simd_apply) {
+      pad_states(pp, nullptr, model.num_nodes());
+    }
   }
   const Scalar* p4 = nullptr;  // p padded, for the continuum's edges
   if constexpr (std::is_same_v<Scalar, double>) p4 = simd_apply ? m_x4.data() : nullptr;
@@ -1129,8 +1145,6 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
       if (lo < hi) kernel_range(lo, hi, out);
     }
   };
-  detail::WorkerPool* pool = m_pool.get();
-  const int T = pool ? std::min<int>(pool->size(), static_cast<int>(m_scratch.size())) : 1;
   if (T > 1 && !m_continuum.empty()) {
     // Links and elements together on the pool (ContinuumTerm::apply_implicit_phase1-3), then
     // each thread sums its share of the nodes: y = M p + the T buffers.
@@ -1163,9 +1177,12 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
       detail::sum_buffers(begin, end, y.data(), m_scratch, T, init);
     };
     pool->run(sum);
+  } else if (simd_apply && T <= 1) {  // y = M p above
+    kernel(0, model.num_links(), y.data());
+    m_continuum.apply_implicit(pp, y.data(), p4);
   } else {
-    detail::scatter_links(m_pool.get(), model.num_nodes(), model.num_links(), y.data(), m_scratch,
-                          init, kernel);
+    detail::scatter_links(pool, model.num_nodes(), model.num_links(), y.data(), m_scratch, init,
+                          kernel);
     m_continuum.apply_implicit(pp, y.data(), p4);
   }
   for (Index k = 0; k < m_num_contacts; ++k) {
@@ -1183,8 +1200,7 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
     const Scalar h = m_implicit_h;
     y.row(hn.node) += (h * h * hn.stiffness + h * hn.damping) * p.row(hn.node);
   }
-  for (Index i = 0; i < model.num_nodes(); ++i)
-    if (m_immobile[std::size_t(i)]) y.row(i).setZero();
+  for (const Index i : m_immobile_nodes) y.row(i).setZero();
 }
 
 template <typename Scalar>
