@@ -288,6 +288,10 @@ class ForceModel {
   [[nodiscard]] const std::vector<std::uint8_t>& asleep() const noexcept { return m_asleep; }
   /// @brief 1 for a node that cannot move now (fixed or asleep).
   [[nodiscard]] const std::vector<std::uint8_t>& immobile() const noexcept { return m_immobile; }
+  /// @brief The immobile nodes' indices, ascending.
+  [[nodiscard]] const std::vector<Index>& immobile_nodes() const noexcept {
+    return m_immobile_nodes;
+  }
   /// @brief Links the force loops visit: [begin, end) ranges with at least one mobile end.
   [[nodiscard]] const std::vector<std::pair<Index, Index>>& active_links() const noexcept {
     return m_ranges;

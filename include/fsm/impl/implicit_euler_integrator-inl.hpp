@@ -136,7 +136,6 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg(SphereModel<Scalar>& 
                                                            Scalar dt) noexcept {
   const JacobianForm form =
       m_options.jacobian == JacobianForm::exact ? JacobianForm::symmetric : m_options.jacobian;
-  const auto& fixed = forces.immobile();  // fixed or asleep
   const Index n = model.num_nodes();
 
   // Warm start: the previous step's velocity change, scaled to this step size, or extrapolated
@@ -144,18 +143,20 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg(SphereModel<Scalar>& 
   // solve.
   const bool extrapolate =
       m_options.extrapolate_warm_start && m_last_dt == dt && m_previous_dt == dt;
-  if (m_last_dt > Scalar(0)) m_dv *= dt / m_last_dt;
-  if (extrapolate) {
-    m_q = m_dv;
-    m_dv *= Scalar(2);
-    m_dv -= m_dv_previous;
-    m_dv_previous = m_q;
+  if (m_last_dt > Scalar(0) && m_last_dt != dt) m_dv *= dt / m_last_dt;
+  if (extrapolate) {  // dv = 2 dv - dv_previous, dv_previous = the old dv, in one pass
+    Scalar* dv = m_dv.data();
+    Scalar* previous = m_dv_previous.data();
+    for (Index k = 0; k < 3 * n; ++k) {
+      const Scalar d = dv[k];
+      dv[k] = Scalar(2) * d - previous[k];
+      previous[k] = d;
+    }
   } else {
     m_dv_previous = m_dv;
   }
   m_previous_dt = m_last_dt > Scalar(0) ? dt : Scalar(0);
-  for (Index i = 0; i < n; ++i)
-    if (fixed[std::size_t(i)]) m_dv.row(i).setZero();
+  for (const Index i : forces.immobile_nodes()) m_dv.row(i).setZero();
   if (!m_dv.allFinite()) m_dv.setZero();
 
   m_simd = {};
