@@ -5,8 +5,9 @@
 // of its own, so that the kernels and the xsimd templates they instantiate on it differ from the
 // AVX2 files' and cannot be merged with them at link time (an AVX2-only CPU must never run an EVEX
 // instruction). Not quite everything: xsimd's explicit specializations for the base types (the AVX
-// registers' conversions) are shared; optimised, they are inlined (`nm` of the Release objects
-// finds no common symbol), but an unoptimised build may emit them out of line in both files.
+// registers' conversions) are shared; optimised, they are inlined, so the kernel files are
+// compiled optimised in every build type (CMakeLists.txt), and ctest's
+// Simd.Avx512ObjectsShareNoCode checks that every weak function of these objects names this type.
 // Include only in files compiled with -mavx512f -mavx512vl -mavx512dq.
 
 #include <xsimd/xsimd.hpp>

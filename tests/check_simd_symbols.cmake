@@ -1,0 +1,35 @@
+# Every weak code symbol (nm type W) of an AVX-512 kernel object names the AVX-512 files' own
+# instruction-set type (fsm::detail::simd::Avx2Evex, src/fsm/simd/evex_arch.hpp). Any other weak
+# function may also be defined by the AVX2 files or the rest of the library, and the linker keeps
+# one copy: if it keeps the AVX-512 one, an AVX2-only CPU runs EVEX instructions (SIGILL).
+#   cmake -DNM=<nm> -DOBJECTS=<objects joined by |> -P check_simd_symbols.cmake
+string(REPLACE "|" ";" objects "${OBJECTS}")
+set(checked 0)
+set(bad "")
+foreach(obj IN LISTS objects)
+  if(NOT obj MATCHES "_avx512\\.cpp\\.o(bj)?$")
+    continue()
+  endif()
+  execute_process(COMMAND "${NM}" --defined-only "${obj}" OUTPUT_VARIABLE out
+                  RESULT_VARIABLE rc ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "${NM} failed on ${obj}: ${err}")
+  endif()
+  math(EXPR checked "${checked} + 1")
+  string(REPLACE "\n" ";" lines "${out}")
+  foreach(line IN LISTS lines)
+    if(line MATCHES "^[0-9a-fA-F]* *W (.+)$")
+      set(name "${CMAKE_MATCH_1}")
+      if(NOT name MATCHES "Avx2Evex")
+        string(APPEND bad "\n  ${obj}: ${name}")
+      endif()
+    endif()
+  endforeach()
+endforeach()
+if(checked EQUAL 0)
+  message(FATAL_ERROR "no AVX-512 kernel object among: ${OBJECTS}")
+endif()
+if(bad)
+  message(FATAL_ERROR "weak functions in AVX-512 objects that other objects may define too:${bad}")
+endif()
+message(STATUS "${checked} AVX-512 kernel objects: every weak function is their own")
