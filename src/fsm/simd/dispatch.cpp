@@ -1,5 +1,5 @@
-// Run-time choice of the link and element kernels (compiled with the library's baseline flags: it
-// must run on any x86-64 CPU, so it only asks the CPU what it has).
+// Run-time choice of the link, element and CG kernels (compiled with the library's baseline flags:
+// it must run on any x86-64 CPU, so it only asks the CPU what it has).
 
 #include <cstdlib>
 #include <cstring>
@@ -7,6 +7,19 @@
 #include "fsm/detail/simd_links.hpp"
 #include "fsm/detail/simd_solver.hpp"
 #include "fsm/detail/simd_tets.hpp"
+
+// The kernels whose getters take no argument: X(type, getter name).
+#define FSM_SIMD_PLAIN_KERNELS(X)            \
+  X(LinkApplyKernel, link_apply_kernel)      \
+  X(LinkEnergyKernel, link_energy_kernel)    \
+  X(TetForceKernel, tet_force_kernel)        \
+  X(TetEnergyKernel, tet_energy_kernel)      \
+  X(TetSpreadKernel, tet_spread_kernel)      \
+  X(TetGatherKernel, tet_gather_kernel)      \
+  X(PreconditionKernel, precondition_kernel) \
+  X(CgUpdateKernel, cg_update_kernel)        \
+  X(CgDirectionKernel, cg_direction_kernel)  \
+  X(DotKernel, dot_kernel)
 
 namespace fsm::detail::simd {
 
@@ -16,20 +29,15 @@ namespace fsm::detail::simd {
 #define FSM_SIMD_DECLARE_GETTERS(isa)                                                   \
   LinkForceKernel isa##_link_force_kernel(bool bilinear, bool along_link) noexcept;     \
   LinkPrepareKernel isa##_link_prepare_kernel(bool bilinear, bool along_link) noexcept; \
-  LinkApplyKernel isa##_link_apply_kernel() noexcept;                                   \
-  LinkEnergyKernel isa##_link_energy_kernel() noexcept;                                 \
-  TetForceKernel isa##_tet_force_kernel() noexcept;                                     \
-  TetEnergyKernel isa##_tet_energy_kernel() noexcept;                                   \
-  TetSpreadKernel isa##_tet_spread_kernel() noexcept;                                   \
-  TetGatherKernel isa##_tet_gather_kernel() noexcept;                                   \
-  PreconditionKernel isa##_precondition_kernel() noexcept;                              \
-  CgUpdateKernel isa##_cg_update_kernel() noexcept;                                     \
-  CgDirectionKernel isa##_cg_direction_kernel() noexcept;                               \
-  DotKernel isa##_dot_kernel() noexcept;
+  FSM_SIMD_PLAIN_KERNELS(FSM_SIMD_DECLARE_PLAIN_##isa)
+#define FSM_SIMD_DECLARE_PLAIN_avx2(Type, name) Type avx2_##name() noexcept;
+#define FSM_SIMD_DECLARE_PLAIN_avx512(Type, name) Type avx512_##name() noexcept;
 FSM_SIMD_DECLARE_GETTERS(avx2)
 #if defined(FSM_SIMD_AVX512)
 FSM_SIMD_DECLARE_GETTERS(avx512)
 #endif
+#undef FSM_SIMD_DECLARE_PLAIN_avx512
+#undef FSM_SIMD_DECLARE_PLAIN_avx2
 #undef FSM_SIMD_DECLARE_GETTERS
 
 namespace {
@@ -72,46 +80,12 @@ LinkPrepareKernel link_prepare_kernel(bool bilinear, bool along_link) noexcept {
   return FSM_PICK(link_prepare_kernel(bilinear, along_link));
 }
 
-LinkApplyKernel link_apply_kernel() noexcept {
-  return FSM_PICK(link_apply_kernel());
-}
-
-LinkEnergyKernel link_energy_kernel() noexcept {
-  return FSM_PICK(link_energy_kernel());
-}
-
-TetForceKernel tet_force_kernel() noexcept {
-  return FSM_PICK(tet_force_kernel());
-}
-
-TetEnergyKernel tet_energy_kernel() noexcept {
-  return FSM_PICK(tet_energy_kernel());
-}
-
-TetSpreadKernel tet_spread_kernel() noexcept {
-  return FSM_PICK(tet_spread_kernel());
-}
-
-TetGatherKernel tet_gather_kernel() noexcept {
-  return FSM_PICK(tet_gather_kernel());
-}
-
-PreconditionKernel precondition_kernel() noexcept {
-  return FSM_PICK(precondition_kernel());
-}
-
-CgUpdateKernel cg_update_kernel() noexcept {
-  return FSM_PICK(cg_update_kernel());
-}
-
-CgDirectionKernel cg_direction_kernel() noexcept {
-  return FSM_PICK(cg_direction_kernel());
-}
-
-DotKernel dot_kernel() noexcept {
-  return FSM_PICK(dot_kernel());
-}
-
+#define FSM_SIMD_DEFINE_PLAIN(Type, name) \
+  Type name() noexcept {                  \
+    return FSM_PICK(name());              \
+  }
+FSM_SIMD_PLAIN_KERNELS(FSM_SIMD_DEFINE_PLAIN)
+#undef FSM_SIMD_DEFINE_PLAIN
 #undef FSM_PICK
 
 const char* instruction_set() noexcept {
@@ -132,39 +106,17 @@ LinkForceKernel link_force_kernel(bool, bool) noexcept {
 LinkPrepareKernel link_prepare_kernel(bool, bool) noexcept {
   return nullptr;
 }
-LinkApplyKernel link_apply_kernel() noexcept {
-  return nullptr;
-}
-LinkEnergyKernel link_energy_kernel() noexcept {
-  return nullptr;
-}
-TetForceKernel tet_force_kernel() noexcept {
-  return nullptr;
-}
-TetEnergyKernel tet_energy_kernel() noexcept {
-  return nullptr;
-}
-TetSpreadKernel tet_spread_kernel() noexcept {
-  return nullptr;
-}
-TetGatherKernel tet_gather_kernel() noexcept {
-  return nullptr;
-}
-PreconditionKernel precondition_kernel() noexcept {
-  return nullptr;
-}
-CgUpdateKernel cg_update_kernel() noexcept {
-  return nullptr;
-}
-CgDirectionKernel cg_direction_kernel() noexcept {
-  return nullptr;
-}
-DotKernel dot_kernel() noexcept {
-  return nullptr;
-}
+#define FSM_SIMD_DEFINE_PLAIN(Type, name) \
+  Type name() noexcept {                  \
+    return nullptr;                       \
+  }
+FSM_SIMD_PLAIN_KERNELS(FSM_SIMD_DEFINE_PLAIN)
+#undef FSM_SIMD_DEFINE_PLAIN
 const char* instruction_set() noexcept {
   return "none";
 }
 #endif
 
 }  // namespace fsm::detail::simd
+
+#undef FSM_SIMD_PLAIN_KERNELS
