@@ -1,13 +1,18 @@
-# Every weak code symbol (nm type W) of an AVX-512 kernel object names the AVX-512 files' own
-# instruction-set type (fsm::detail::simd::Avx2Evex, src/fsm/simd/evex_arch.hpp). Any other weak
-# function may also be defined by the AVX2 files or the rest of the library, and the linker keeps
-# one copy: if it keeps the AVX-512 one, an AVX2-only CPU runs EVEX instructions (SIGILL).
+# Every weak code symbol (nm type W) of a SIMD kernel object names that object's own instruction-
+# set type: fsm::detail::simd::Avx2Evex (src/fsm/simd/evex_arch.hpp) in the *_avx512 objects,
+# xsimd::fma3<xsimd::avx2> in the *_avx2 ones. Any other weak function may also be defined by
+# another instruction set's objects or by the rest of the library, and the linker keeps one copy:
+# if it keeps the wider one, a CPU without those instructions stops on an illegal instruction.
 #   cmake -DNM=<nm> -DOBJECTS=<objects joined by |> -P check_simd_symbols.cmake
 string(REPLACE "|" ";" objects "${OBJECTS}")
 set(checked 0)
 set(bad "")
 foreach(obj IN LISTS objects)
-  if(NOT obj MATCHES "_avx512\\.cpp\\.o(bj)?$")
+  if(obj MATCHES "_avx512\\.cpp\\.o(bj)?$")
+    set(own "Avx2Evex")  # (mangled: 8Avx2Evex)
+  elseif(obj MATCHES "_avx2\\.cpp\\.o(bj)?$")
+    set(own "4fma3IN[^E]*4avx2E")  # xsimd::fma3<xsimd::avx2>, mangled
+  else()
     continue()
   endif()
   execute_process(COMMAND "${NM}" --defined-only "${obj}" OUTPUT_VARIABLE out
@@ -20,16 +25,16 @@ foreach(obj IN LISTS objects)
   foreach(line IN LISTS lines)
     if(line MATCHES "^[0-9a-fA-F]* *W (.+)$")
       set(name "${CMAKE_MATCH_1}")
-      if(NOT name MATCHES "Avx2Evex")
+      if(NOT name MATCHES "${own}")
         string(APPEND bad "\n  ${obj}: ${name}")
       endif()
     endif()
   endforeach()
 endforeach()
 if(checked EQUAL 0)
-  message(FATAL_ERROR "no AVX-512 kernel object among: ${OBJECTS}")
+  message(FATAL_ERROR "no SIMD kernel object among: ${OBJECTS}")
 endif()
 if(bad)
-  message(FATAL_ERROR "weak functions in AVX-512 objects that other objects may define too:${bad}")
+  message(FATAL_ERROR "weak functions in SIMD kernel objects that other objects may define too:${bad}")
 endif()
-message(STATUS "${checked} AVX-512 kernel objects: every weak function is their own")
+message(STATUS "${checked} SIMD kernel objects: every weak function is their own")

@@ -254,7 +254,8 @@ TEST(ForceModel, SimdSolverKernelsMatchTheScalarLoops) {
       std::vector<double> B(6 * std::size_t(n)), diag = random(n3);
       for (std::size_t k = 0; k < n3; ++k) diag[k] = 1.0 + std::abs(diag[k]);
       for (int i = 0; i < n; ++i) {
-        // A B^T + c I: definite for c > 0, indefinite for c well below 0; one singular, one NaN.
+        // A A^T + c I: definite for c > 0, indefinite for c well below 0; some singular (zero),
+        // some with an infinite entry (a determinant that is not finite).
         Eigen::Matrix3d A = Eigen::Matrix3d::NullaryExpr([&] { return g(rng); });
         Eigen::Matrix3d K =
             A * A.transpose() + (i % 5 == 2 ? -4.0 : 0.5) * Eigen::Matrix3d::Identity();
@@ -264,7 +265,8 @@ TEST(ForceModel, SimdSolverKernelsMatchTheScalarLoops) {
         std::copy(e, e + 6, B.begin() + 6 * i);
       }
       // The reference: each node's inverse block (xx yy zz xy xz yz), as the integrator's scalar
-      // loop computes it.
+      // loop computes it for block-Jacobi (its Jacobi path divides by the diagonal where the kernel
+      // multiplies by its inverse: within an ulp, which the iteration-count test below covers).
       std::vector<double> ref(6 * std::size_t(n));
       for (int i = 0; i < n; ++i) {
         double* o = &ref[6 * std::size_t(i)];
@@ -375,6 +377,7 @@ TEST(ForceModel, SimdConjugateGradientMatchesTheScalarSolve) {
       for (int s = 0; s < 5; ++s) {
         const IntegratorResult res = ie.step(model, forces, 1e-3);
         EXPECT_TRUE(res.ok);
+        EXPECT_EQ(ie.used_simd_kernels(), use_simd);  // the path under test did run
         iterations.push_back(res.iterations);
       }
       return Positions<double>(model.velocities());

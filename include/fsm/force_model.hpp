@@ -277,6 +277,15 @@ class ForceModel {
                                     const ConstPositionsRef& x_before) const noexcept;
   /// @}
 
+  /// @brief A read-only run of node indices (for range-for).
+  struct NodeList {
+    const Index* first;
+    const Index* last;
+    [[nodiscard]] const Index* begin() const noexcept { return first; }
+    [[nodiscard]] const Index* end() const noexcept { return last; }
+    [[nodiscard]] Index size() const noexcept { return Index(last - first); }
+  };
+
   /// @name Sleeping
   /// An asleep node is held still like a fixed one (inverse mass 0), and links none of whose ends
   /// can move are skipped by the force loops. Simulation's sleep policy drives this.
@@ -289,8 +298,8 @@ class ForceModel {
   /// @brief 1 for a node that cannot move now (fixed or asleep).
   [[nodiscard]] const std::vector<std::uint8_t>& immobile() const noexcept { return m_immobile; }
   /// @brief The immobile nodes' indices, ascending.
-  [[nodiscard]] const std::vector<Index>& immobile_nodes() const noexcept {
-    return m_immobile_nodes;
+  [[nodiscard]] NodeList immobile_nodes() const noexcept {
+    return {m_immobile_nodes.data(), m_immobile_nodes.data() + m_num_immobile};
   }
   /// @brief Links the force loops visit: [begin, end) ranges with at least one mobile end.
   [[nodiscard]] const std::vector<std::pair<Index, Index>>& active_links() const noexcept {
@@ -459,7 +468,10 @@ class ForceModel {
   Options m_options;
   Index m_num_nodes{0};
   std::vector<std::uint8_t> m_asleep, m_immobile;
-  std::vector<Index> m_immobile_nodes;  // the immobile ones' indices (capacity: refresh())
+  // The immobile ones' indices, the first m_num_immobile of n (sized by refresh(), so that
+  // update_mobility() never allocates, in a copy too).
+  std::vector<Index> m_immobile_nodes;
+  Index m_num_immobile{0};
   std::vector<std::pair<Index, Index>> m_ranges;
   Scalar m_implicit_h{0};
   std::vector<Scalar> m_external;

@@ -90,6 +90,9 @@ class ImplicitEulerIntegrator final : public Integrator<Scalar> {
   }
   [[nodiscard]] const Options& options() const noexcept { return m_options; }
   void set_options(const Options& options) { m_options = options; }
+  /// Whether the last CG solve ran its vector work on the SIMD kernels (detail/simd_solver.hpp:
+  /// doubles, ForceModel::Options::simd, a CPU with AVX2 and FMA).
+  [[nodiscard]] bool used_simd_kernels() const noexcept { return m_simd.update != nullptr; }
 
   void prepare(const SphereModel<Scalar>& model) override;
   IntegratorResult step(SphereModel<Scalar>& model, ForceModel<Scalar>& forces,
@@ -132,7 +135,9 @@ class ImplicitEulerIntegrator final : public Integrator<Scalar> {
   // step length it is scaled to (0: none).
   Positions<Scalar> m_dv_previous;
   Scalar m_previous_dt{0};
-  std::vector<Scalar> m_pblocks;  // block-Jacobi: 6 per node (the inverse's xx yy zz xy xz yz)
+  // Block-Jacobi: 6 per node (xx yy zz xy xz yz), the diagonal blocks, inverted in place on the
+  // scalar path (on the SIMD path their inverse goes to m_pinv).
+  std::vector<Scalar> m_pblocks;
   // The SIMD path (set per solve; all null otherwise) and its preconditioner, grouped by four
   // nodes (detail/simd_solver.hpp).
   struct SimdKernels {

@@ -429,7 +429,7 @@ void ForceModel<Scalar>::refresh(const SphereModel<Scalar>& model) {
   }
   if (m_asleep.size() != std::size_t(n)) m_asleep.assign(std::size_t(n), 0);
   m_immobile.resize(std::size_t(n));
-  m_immobile_nodes.reserve(std::size_t(n));
+  m_immobile_nodes.resize(std::size_t(n));
   m_inverse_mass.resize(n);
   m_force_link.assign(std::size_t(model.num_links()), 1);
   // Links inside a continuum region carry no force: the region's elements do.
@@ -498,11 +498,11 @@ template <typename Scalar>
 void ForceModel<Scalar>::update_mobility(const SphereModel<Scalar>& model) noexcept {
   const auto mass = model.masses();
   const auto fixed = model.fixed();
-  m_immobile_nodes.clear();  // (within its capacity)
+  m_num_immobile = 0;
   for (Index i = 0; i < m_num_nodes; ++i) {
     m_immobile[std::size_t(i)] = (fixed[i] || m_asleep[std::size_t(i)]) ? 1 : 0;
     m_inverse_mass[i] = m_immobile[std::size_t(i)] ? Scalar(0) : Scalar(1) / mass[i];
-    if (m_immobile[std::size_t(i)]) m_immobile_nodes.push_back(i);
+    if (m_immobile[std::size_t(i)]) m_immobile_nodes[std::size_t(m_num_immobile++)] = i;
   }
   update_ranges(model);
 }
@@ -990,7 +990,7 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
     rhs.row(hn.node) += r.transpose();
     diagonal.row(hn.node).array() += h2 * hn.stiffness + h * hn.damping;
   }
-  for (const Index i : m_immobile_nodes) {
+  for (const Index i : immobile_nodes()) {
     rhs.row(i).setZero();
     diagonal.row(i).setOnes();
   }
@@ -1073,7 +1073,7 @@ void ForceModel<Scalar>::implicit_diagonal_blocks(const SphereModel<Scalar>& mod
     const Scalar zero[3] = {0, 0, 0};
     add(hn.node, zero, Scalar(0), h * h * hn.stiffness + h * hn.damping);
   }
-  for (const Index i : m_immobile_nodes) {
+  for (const Index i : immobile_nodes()) {
     Scalar* o = out + 6 * std::ptrdiff_t(i);
     o[0] = o[1] = o[2] = Scalar(1);
     o[3] = o[4] = o[5] = Scalar(0);
@@ -1200,7 +1200,7 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
     const Scalar h = m_implicit_h;
     y.row(hn.node) += (h * h * hn.stiffness + h * hn.damping) * p.row(hn.node);
   }
-  for (const Index i : m_immobile_nodes) y.row(i).setZero();
+  for (const Index i : immobile_nodes()) y.row(i).setZero();
 }
 
 template <typename Scalar>

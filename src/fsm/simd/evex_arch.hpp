@@ -7,7 +7,7 @@
 // instruction). Not quite everything: xsimd's explicit specializations for the base types (the AVX
 // registers' conversions) are shared; optimised, they are inlined, so the kernel files are
 // compiled optimised in every build type (CMakeLists.txt), and ctest's
-// Simd.Avx512ObjectsShareNoCode checks that every weak function of these objects names this type.
+// Simd.KernelObjectsShareNoCode checks that every weak function of these objects names this type.
 // Include only in files compiled with -mavx512f -mavx512vl -mavx512dq.
 
 #include <xsimd/xsimd.hpp>
