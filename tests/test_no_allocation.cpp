@@ -148,6 +148,54 @@ TYPED_TEST(NoAllocation, CutAndTearAllocateNothing) {
   }
 }
 
+// A copied ForceModel and ContactSolver (copy-constructed and copy-assigned) keep the capacity
+// their lists were given at refresh(): putting every other node to sleep splits the active links
+// into more ranges than the source had, and the face contact fills its touched-node list, with
+// no allocation. (A copy of a plain std::vector has capacity for its elements only: both failed.)
+TYPED_TEST(NoAllocation, CopiesKeepTheirReservedCapacity) {
+  using S = TypeParam;
+  SphereModel<S> model = jittered_block<S>();
+  ForceModel<S> source(model);
+  collision::ContactOptions<S> co;
+  co.face_contact = true;
+  collision::ContactSolver<S> contacts_source(model, source, co);
+  collision::Instrument<S> tool;
+  tool.shape = collision::SphereShape<S>{S(0.004)};
+  tool.pose.position = Vector3<S>(S(0.0075), S(0.0075), S(0.0235));
+  contacts_source.add_instrument(tool);
+  const auto ranges_before = source.active_links().size();
+  ForceModel<S> assigned(model);
+  assigned = source;
+  collision::ContactSolver<S> contacts_assigned(model);
+  contacts_assigned = contacts_source;
+  ForceModel<S> forces_copy(source);
+  collision::ContactSolver<S> contacts_copy(contacts_source);
+  std::vector<std::uint8_t> asleep(std::size_t(model.num_nodes()), 0);
+  for (std::size_t i = 1; i < asleep.size(); i += 2) asleep[i] = 1;
+  ImplicitEulerIntegrator<S> integrator;
+  integrator.prepare(model);
+  for (ForceModel<S>* forces : {&forces_copy, &assigned}) {
+    collision::ContactSolver<S>& contacts = forces == &assigned ? contacts_assigned : contacts_copy;
+    const char* what = forces == &assigned ? "copy-assigned" : "copy-constructed";
+    g_allocations = 0;
+    g_counting = true;
+    const bool slept = forces->set_asleep(asleep, model);
+    const long sleeping = g_allocations.exchange(0);
+    const bool found = contacts.compute(model, *forces);
+    const long detecting = g_allocations.exchange(0);
+    const bool stepped = integrator.step(model, *forces, S(1e-3)).ok;
+    g_counting = false;
+    EXPECT_EQ(sleeping, 0) << what;
+    EXPECT_EQ(detecting, 0) << what;
+    EXPECT_EQ(g_allocations.load(), 0) << what;
+    EXPECT_TRUE(slept && found && stepped);
+    EXPECT_GT(forces->active_links().size(), ranges_before);  // more ranges than the source had
+    EXPECT_GT(contacts.num_contacts(), 0);                    // the tool touched faces
+    model.positions() = model.rest_positions();
+    model.velocities().setZero();
+  }
+}
+
 // A grasper gripping, pulling and releasing through the steps.
 TYPED_TEST(NoAllocation, GraspingAllocatesNothing) {
   using S = TypeParam;

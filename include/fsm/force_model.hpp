@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "fsm/detail/continuum.hpp"
+#include "fsm/detail/reserved_vector.hpp"
 #include "fsm/detail/worker_pool.hpp"
 #include "fsm/sphere_model.hpp"
 #include "fsm/types.hpp"
@@ -472,7 +473,9 @@ class ForceModel {
   // update_mobility() never allocates, in a copy too).
   std::vector<Index> m_immobile_nodes;
   Index m_num_immobile{0};
-  std::vector<std::pair<Index, Index>> m_ranges;
+  // Active and force link ranges: refilled within the capacity refresh() reserves (a copy keeps
+  // it: ReservedVector), so that update_ranges() never allocates.
+  detail::ReservedVector<std::pair<Index, Index>> m_ranges;
   Scalar m_implicit_h{0};
   std::vector<Scalar> m_external;
   std::vector<double> m_x4, m_v4;  // positions and velocities, 4 per node, for the SIMD kernel
@@ -491,8 +494,8 @@ class ForceModel {
   Scalar m_contact_time{0};
   bool m_contacts_linearised{false};       // the last step was implicit (contact_work's accounting)
   std::vector<std::uint8_t> m_force_link;  // per link: carries force
-  std::vector<std::uint8_t> m_continuum_link;           // per link: inside a continuum region
-  std::vector<std::pair<Index, Index>> m_force_ranges;  // force links, whatever moves
+  std::vector<std::uint8_t> m_continuum_link;  // per link: inside a continuum region
+  detail::ReservedVector<std::pair<Index, Index>> m_force_ranges;  // force links, whatever moves
   detail::ContinuumTerm<Scalar> m_continuum;
   std::vector<Scalar> m_element_force;  // |V| x 3 scratch of prepare_implicit
   // prepare_implicit's rhs and diagonal before the contacts, for a re-solve of the same state.

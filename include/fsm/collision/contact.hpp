@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "fsm/collision/shapes.hpp"
+#include "fsm/detail/reserved_vector.hpp"
 #include "fsm/force_model.hpp"
 #include "fsm/sphere_model.hpp"
 
@@ -280,7 +281,7 @@ class ContactSolver {
   std::vector<std::uint32_t> m_face_stamp;
   std::uint32_t m_stamp{0};
   std::vector<Scalar> m_face_acc;  // 10 per node: k, F (3), k delta, k delta p (3), k delta v_s
-  std::vector<Index> m_touched;
+  fsm::detail::ReservedVector<Index> m_touched;  // (capacity n; a copy keeps it)
   Index m_dominant_region{-1};
   Scalar m_max_radius{0};
   std::vector<Contact<Scalar>> m_contacts;
@@ -288,7 +289,8 @@ class ContactSolver {
   bool m_overflow{false};
   Index m_candidates{0}, m_narrow_tests{0};
   // Verlet list of part-contact candidate pairs and the positions it was built at.
-  std::vector<std::pair<Index, Index>> m_pairs;
+  // (a copy keeps the reserved capacity: a list that does not fit is rescanned every step)
+  fsm::detail::ReservedVector<std::pair<Index, Index>> m_pairs;
   Positions<Scalar> m_list_x;
   bool m_list_valid{false};
   Index m_rebuilds{0};
