@@ -228,6 +228,64 @@ TEST(ForceModel, SimdImplicitLinkKernelsMatchTheScalarLoops) {
         }
 }
 
+// The node-block kernel (the block-Jacobi preconditioner's link part) against the formula it
+// replaces, to the last bit: per link a n n^T + b I added to both ends, the first node's summed
+// over its run of links. Random blocks and runs of 1-5 links per first node, sub-ranges that cut
+// runs, and guard values after the output that the kernel must not touch.
+TEST(ForceModel, SimdLinkNodeBlocksMatchTheScalarLoop) {
+  const auto kernel = detail::simd::link_node_blocks_kernel();
+  // Without AVX2+FMA (or without xsimd at build time) there is no kernel and ForceModel runs its
+  // scalar loop, which SimdImplicitLinkKernelsMatchTheScalarLoops compares with through the
+  // preconditioner's blocks.
+  if (!kernel) GTEST_SKIP() << "no SIMD link kernel for this CPU or build";
+  std::mt19937 rng(8);
+  std::normal_distribution<double> g(0.0, 1.0);
+  const std::int32_t n = 23;
+  std::vector<std::int32_t> ij;
+  for (std::int32_t i = 0; i < n && ij.size() < 2 * 40; ++i)
+    for (std::int32_t k = 0, runs = 1 + std::int32_t(rng() % 5); k < runs; ++k) {
+      ij.push_back(i);
+      ij.push_back((i + 1 + std::int32_t(rng() % (n - 1))) % n);  // any other node
+    }
+  const auto links = std::int32_t(ij.size() / 2);
+  std::vector<double> blocks(5 * std::size_t(links));
+  for (std::size_t l = 0; l < std::size_t(links); ++l) {
+    Eigen::Vector3d nv(g(rng), g(rng), g(rng));
+    nv.normalize();
+    const double v[5] = {nv[0], nv[1], nv[2], 1e3 * g(rng), std::abs(1e2 * g(rng))};
+    std::copy(v, v + 5, blocks.begin() + std::ptrdiff_t(5 * l));
+  }
+  auto reference = [&](std::int32_t begin, std::int32_t end, double* out) {
+    for (std::int32_t l = begin; l < end;) {
+      const std::int32_t i = ij[std::size_t(2 * l)];
+      double acc[6] = {0, 0, 0, 0, 0, 0};
+      for (; l < end && ij[std::size_t(2 * l)] == i; ++l) {
+        const double* B = blocks.data() + 5 * std::ptrdiff_t(l);
+        const double al = B[3], be = B[4];
+        const double d[6] = {al * B[0] * B[0] + be, al * B[1] * B[1] + be, al * B[2] * B[2] + be,
+                             al * B[0] * B[1],      al * B[0] * B[2],      al * B[1] * B[2]};
+        double* o = out + 6 * std::ptrdiff_t(ij[std::size_t(2 * l + 1)]);
+        for (int c = 0; c < 6; ++c) {
+          o[c] += d[c];
+          acc[c] += d[c];
+        }
+      }
+      for (int c = 0; c < 6; ++c) out[6 * std::ptrdiff_t(i) + c] += acc[c];
+    }
+  };
+  const std::pair<std::int32_t, std::int32_t> ranges[] = {
+      {0, links}, {0, 1}, {3, 4}, {2, links - 1}, {links / 2, links}, {5, 5}};
+  for (const auto& [begin, end] : ranges) {
+    SCOPED_TRACE(testing::Message() << "links [" << begin << ", " << end << ")");
+    std::vector<double> a(6 * std::size_t(n) + 8), b;
+    for (double& x : a) x = g(rng);
+    b = a;
+    reference(begin, end, a.data());
+    kernel(ij.data(), blocks.data(), b.data(), begin, end);
+    for (std::size_t k = 0; k < a.size(); ++k) ASSERT_EQ(a[k], b[k]) << "entry " << k;
+  }
+}
+
 // The CG kernels (detail/simd_solver.hpp) against the scalar formulas they replace: the
 // preconditioner from 3 x 3 blocks that are positive definite, indefinite, singular or not finite
 // (those fall back to the diagonal) and from the diagonal alone; the update, z = P r, r^T z, the

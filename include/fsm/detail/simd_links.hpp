@@ -48,6 +48,15 @@ using LinkEnergyKernel = double (*)(const LinkArrays& links, const double* x,
 /// The energy kernel for this CPU, or nullptr.
 LinkEnergyKernel link_energy_kernel() noexcept;
 
+/// The links' 3 x 3 diagonal blocks for links [begin, end), what ForceModel::add_link_node_blocks
+/// does with the same roundings: each link's a n n^T + b I (its `blocks` entry: n, a, b) added to
+/// both ends' 6 doubles (xx, yy, zz, xy, xz, yz) in `out`.
+using LinkNodeBlocksKernel = void (*)(const std::int32_t* ij, const double* blocks, double* out,
+                                      std::int32_t begin, std::int32_t end);
+
+/// The node-block kernel for this CPU, or nullptr.
+LinkNodeBlocksKernel link_node_blocks_kernel() noexcept;
+
 /// The prepare kernel for this CPU, or nullptr.
 LinkPrepareKernel link_prepare_kernel(bool bilinear, bool along_link) noexcept;
 

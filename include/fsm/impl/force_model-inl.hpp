@@ -1018,8 +1018,20 @@ void ForceModel<Scalar>::add_link_node_blocks(const SphereModel<Scalar>& model,
                                               const Scalar* blocks, Index begin, Index end,
                                               Scalar* out) const noexcept {
   // a n n^T + b I on both ends of a link. The first node of a run of links that share it (the
-  // builder sorts links so) sums in registers.
+  // builder sorts links so) sums in registers. On the SIMD kernel when there is one (the same
+  // roundings: ForceModel.SimdLinkNodeBlocksMatchTheScalarLoop).
   const Index* ij = model.links().data();
+  if constexpr (std::is_same_v<Scalar, double>) {
+    if (m_options.simd) {
+      if (const auto simd = detail::simd::link_node_blocks_kernel()) {
+        for (const auto& [a, b] : m_force_ranges) {
+          const Index lo = std::max(a, begin), hi = std::min(b, end);
+          if (lo < hi) simd(ij, blocks, out, lo, hi);
+        }
+        return;
+      }
+    }
+  }
   for (const auto& [a, b] : m_force_ranges) {
     const Index lo = std::max(a, begin), hi = std::min(b, end);
     for (Index l = lo; l < hi;) {

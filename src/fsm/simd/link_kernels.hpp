@@ -348,6 +348,49 @@ void link_apply(const std::int32_t* ij, const double* blocks, const double* p4, 
   scatter.flush();
 }
 
+// The node-block kernel (see simd_links.hpp): each link's a n n^T + b I as (xx, yy, zz, xy, xz, yz)
+// added to both ends, the first node's sum over a run of links that share it kept in registers.
+// The first four entries are one batch: (a n0, a n1, a n2, a n0) times (n0, n1, n2, n1), plus b on
+// the diagonal lanes; xz and yz are (a n0) n2 and (a n1) n2 of the same products. Per entry these
+// are ForceModel::add_link_node_blocks's operations in its order: the results are identical.
+template <class Arch>
+void link_node_blocks(const std::int32_t* ij, const double* blocks, double* out, std::int32_t begin,
+                      std::int32_t end) noexcept {
+  using B = xsimd::batch<double, Arch>;
+  using U = xsimd::batch<std::uint64_t, Arch>;
+  static_assert(B::size == 4, "(xx, yy, zz, xy) in one batch");
+  using Diagonal = xsimd::batch_bool_constant<B, true, true, true, false>;
+  using A = xsimd::batch_constant<U, 3, 3, 3, 3>;
+  using First = xsimd::batch_constant<U, 0, 1, 2, 0>;
+  using Second = xsimd::batch_constant<U, 0, 1, 2, 1>;
+  using Third = xsimd::batch_constant<U, 2, 2, 2, 2>;
+  alignas(32) double r[4];
+  for (std::int32_t l = begin; l < end;) {
+    const std::int32_t i = ij[2 * std::int64_t(l)];
+    B acc(0.0);
+    double acc_xz = 0, acc_yz = 0;
+    for (; l < end && ij[2 * std::int64_t(l)] == i; ++l) {
+      const double* Bl = blocks + 5 * std::int64_t(l);
+      const B nb = B::load_unaligned(Bl);  // (n0, n1, n2, a)
+      const B p = xsimd::swizzle(nb, A{}) * xsimd::swizzle(nb, First{});
+      const B q = p * xsimd::swizzle(nb, Second{});
+      const B d = xsimd::select(Diagonal{}, q + B(Bl[4]), q);
+      (p * xsimd::swizzle(nb, Third{})).store_aligned(r);
+      double* o = out + 6 * std::int64_t(ij[2 * std::int64_t(l) + 1]);
+      (B::load_unaligned(o) + d).store_unaligned(o);
+      o[4] += r[0];
+      o[5] += r[1];
+      acc += d;
+      acc_xz += r[0];
+      acc_yz += r[1];
+    }
+    double* o = out + 6 * std::int64_t(i);
+    (B::load_unaligned(o) + acc).store_unaligned(o);
+    o[4] += acc_xz;
+    o[5] += acc_yz;
+  }
+}
+
 // The energy kernel (see simd_links.hpp): VoigtLink::energy of each link, four per batch. Each
 // node's (x, y, z) is one 4-wide load from the 3-per-node array (its fourth lane the next node's
 // x, unused; the last node, which has no next, is loaded lane by lane), and the four links'
@@ -414,6 +457,9 @@ double link_energy(const LinkArrays& L, const double* x, std::int32_t num_nodes,
   }                                                                                           \
   LinkEnergyKernel isa##_link_energy_kernel() noexcept {                                      \
     return &link_energy<Arch>;                                                                \
+  }                                                                                           \
+  LinkNodeBlocksKernel isa##_link_node_blocks_kernel() noexcept {                             \
+    return &link_node_blocks<Arch>;                                                           \
   }
 
 }  // namespace fsm::detail::simd
