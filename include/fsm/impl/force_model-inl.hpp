@@ -195,8 +195,11 @@ Vector3<Scalar> contact_force(const PenaltyContact<Scalar>& c, const Scalar* x, 
     linear = c.stiffness * (s0 + slope0 * (depth - c.solve_depth)) - c.damping * slope0 * vn;
   }
   slip = u - vn * c.normal;
-  const Scalar r = std::sqrt(slip.squaredNorm() + c.friction_speed * c.friction_speed);
-  const Vector3<Scalar> F = (clamp ? fn : linear) * c.normal - (c.friction * fn / r) * slip;
+  Vector3<Scalar> F = (clamp ? fn : linear) * c.normal;
+  if (c.friction != Scalar(0)) {  // (frictionless part contacts skip the square root)
+    const Scalar r = std::sqrt(slip.squaredNorm() + c.friction_speed * c.friction_speed);
+    F -= (c.friction * fn / r) * slip;
+  }
   return F.allFinite() ? F : Vector3<Scalar>::Zero();
 }
 
@@ -966,7 +969,7 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
     // The law's slope at this state (1 for the plain penalty; the onset's s' otherwise).
     const Scalar slope = detail::contact_slope(c, c.solve_depth);
     c.normal_block = active ? slope * (h2 * c.stiffness + h * c.damping) : Scalar(0);
-    c.tangent_block = active
+    c.tangent_block = active && c.friction != Scalar(0)
                           ? h * c.friction * fn /
                                 std::sqrt(slip.squaredNorm() + c.friction_speed * c.friction_speed)
                           : Scalar(0);
