@@ -148,10 +148,11 @@ TYPED_TEST(NoAllocation, CutAndTearAllocateNothing) {
   }
 }
 
-// A copied ForceModel and ContactSolver (copy-constructed and copy-assigned) keep the capacity
-// their lists were given at refresh(): putting every other node to sleep splits the active links
-// into more ranges than the source had, and the face contact fills its touched-node list, with
-// no allocation. (A copy of a plain std::vector has capacity for its elements only: both failed.)
+// A copied ForceModel and ContactSolver (copy-constructed, and copy-assigned into
+// default-constructed ones) keep the capacity their lists were given at refresh(): putting every
+// other node to sleep and breaking every other link splits the active and force links into more
+// ranges than the source had, and the face contact fills its touched-node list, with no
+// allocation. (A copy of a plain std::vector has capacity for its elements only: this failed.)
 TYPED_TEST(NoAllocation, CopiesKeepTheirReservedCapacity) {
   using S = TypeParam;
   SphereModel<S> model = jittered_block<S>();
@@ -164,14 +165,16 @@ TYPED_TEST(NoAllocation, CopiesKeepTheirReservedCapacity) {
   tool.pose.position = Vector3<S>(S(0.0075), S(0.0075), S(0.0235));
   contacts_source.add_instrument(tool);
   const auto ranges_before = source.active_links().size();
-  ForceModel<S> assigned(model);
+  ForceModel<S> assigned;
   assigned = source;
-  collision::ContactSolver<S> contacts_assigned(model);
+  collision::ContactSolver<S> contacts_assigned;
   contacts_assigned = contacts_source;
   ForceModel<S> forces_copy(source);
   collision::ContactSolver<S> contacts_copy(contacts_source);
   std::vector<std::uint8_t> asleep(std::size_t(model.num_nodes()), 0);
   for (std::size_t i = 1; i < asleep.size(); i += 2) asleep[i] = 1;
+  std::vector<Index> broken, none;
+  for (Index l = 0; l < model.num_links(); l += 2) broken.push_back(l);
   ImplicitEulerIntegrator<S> integrator;
   integrator.prepare(model);
   for (ForceModel<S>* forces : {&forces_copy, &assigned}) {
@@ -180,12 +183,13 @@ TYPED_TEST(NoAllocation, CopiesKeepTheirReservedCapacity) {
     g_allocations = 0;
     g_counting = true;
     const bool slept = forces->set_asleep(asleep, model);
-    const long sleeping = g_allocations.exchange(0);
+    forces->update_topology(model, broken, none);
+    const long ranging = g_allocations.exchange(0);
     const bool found = contacts.compute(model, *forces);
     const long detecting = g_allocations.exchange(0);
     const bool stepped = integrator.step(model, *forces, S(1e-3)).ok;
     g_counting = false;
-    EXPECT_EQ(sleeping, 0) << what;
+    EXPECT_EQ(ranging, 0) << what;
     EXPECT_EQ(detecting, 0) << what;
     EXPECT_EQ(g_allocations.load(), 0) << what;
     EXPECT_TRUE(slept && found && stepped);
@@ -193,6 +197,66 @@ TYPED_TEST(NoAllocation, CopiesKeepTheirReservedCapacity) {
     EXPECT_GT(contacts.num_contacts(), 0);                    // the tool touched faces
     model.positions() = model.rest_positions();
     model.velocities().setZero();
+  }
+}
+
+// The same for the other objects whose lists a step refills: the continuum law's list of elements
+// on the element tangent (every element, with the quality threshold at 1), a Grasper's gripped
+// spheres, and a TopologyEditor's broken links, removed elements and touched pieces. Each is
+// copy-constructed, and copy-assigned into one with less capacity (a default-constructed editor,
+// a ForceModel without elements, a grasper that holds one sphere at most).
+TYPED_TEST(NoAllocation, CopiesOfTheOtherStepListsKeepTheirCapacity) {
+  using S = TypeParam;
+  SphereModel<S> model = jittered_block<S>();
+  model.set_region_law(0, ForceLaw::continuum);
+  typename ForceModel<S>::Options fo;
+  fo.element_tangent_quality = S(1);  // every element takes the element tangent
+  ForceModel<S> forces_source(model, fo);
+  const collision::GrasperOptions<S> go;
+  collision::Grasper<S> grasper_source(model, forces_source, go, S(0.6));
+  TopologyEditor<S> editor_source(model);
+  ForceModel<S> forces_assigned(jittered_block<S>());  // the link law: no elements
+  forces_assigned = forces_source;
+  collision::GrasperOptions<S> one = go;
+  one.max_held = 1;
+  collision::Grasper<S> grasper_assigned(model, forces_source, one, S(0.6));
+  grasper_assigned = grasper_source;
+  TopologyEditor<S> editor_assigned;
+  editor_assigned = editor_source;
+  ForceModel<S> forces_copy(forces_source);
+  collision::Grasper<S> grasper_copy(grasper_source);
+  TopologyEditor<S> editor_copy(editor_source);
+  Positions<S> f(model.num_nodes(), 3);
+  for (const bool copied : {true, false}) {
+    const char* what = copied ? "copy-constructed" : "copy-assigned";
+    ForceModel<S>& forces = copied ? forces_copy : forces_assigned;
+    collision::Grasper<S>& grasper = copied ? grasper_copy : grasper_assigned;
+    TopologyEditor<S>& editor = copied ? editor_copy : editor_assigned;
+    SphereModel<S> m = model;
+    collision::Pose<S> pose;
+    pose.position = Vector3<S>(S(0.004), S(0.01), S(0.02));
+    Blade<S> blade;  // down through the block
+    blade.start_a = Vector3<S>(S(0.0075), S(-0.001), S(0.021));
+    blade.start_b = Vector3<S>(S(0.0075), S(0.021), S(0.021));
+    blade.end_a = Vector3<S>(S(0.0078), S(-0.001), S(0.008));
+    blade.end_b = Vector3<S>(S(0.0078), S(0.021), S(0.008));
+    g_allocations = 0;
+    g_counting = true;
+    forces.evaluate(m, m.positions(), m.velocities(), f);
+    const long continuum = g_allocations.exchange(0);
+    grasper.update(m, forces, pose, Vector3<S>::Zero(), Vector3<S>::Zero(), S(0.6));
+    const collision::GraspEvent e =
+        grasper.update(m, forces, pose, Vector3<S>::Zero(), Vector3<S>::Zero(), S(0.05));
+    const long gripping = g_allocations.exchange(0);
+    TopologyChange change = editor.cut(m, blade);
+    editor.update_pieces(m, forces.force_links(), change);
+    g_counting = false;
+    EXPECT_EQ(continuum, 0) << what;
+    EXPECT_EQ(gripping, 0) << what;
+    EXPECT_EQ(g_allocations.load(), 0) << what;
+    EXPECT_GT(forces.continuum_element_tangents(), 1) << what;
+    EXPECT_GT(e.grasped, 1) << what;  // more than the one-sphere grasper could hold
+    EXPECT_GT(change.links_cut, 0) << what;
   }
 }
 

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "fsm/detail/reserved_vector.hpp"
 #include "fsm/error.hpp"
 #include "fsm/sphere_model.hpp"
 #include "fsm/types.hpp"
@@ -540,11 +541,13 @@ class TopologyEditor {
   std::vector<Index> m_tearable;       // links with a finite tear strain, in index order
   std::vector<Scalar> m_tear_length2;  // per tearable link: (l0 (1 + tear strain))^2
   std::vector<Index> m_link_tet_start, m_link_tets;
-  std::vector<Index> m_broken_links, m_removed_tetrahedra;
+  // Refilled by events within the capacity refresh() reserved (a copy keeps it).
+  detail::ReservedVector<Index> m_broken_links, m_removed_tetrahedra;
   // The pieces: a label per node, fixed nodes per label, the counts; the nodes' links and
   // continuum tetrahedra and the two fronts of update_pieces()' searches.
   std::vector<Index> m_label, m_label_fixed;
-  std::vector<Index> m_anchor, m_touched;  // per label: a node known to be in it (update_pieces)
+  std::vector<Index> m_anchor;  // per label: a node known to be in it (update_pieces)
+  detail::ReservedVector<Index> m_touched;
   Index m_pieces{0}, m_loose{0}, m_next_label{0};
   bool m_labelled{false};
   std::vector<Index> m_node_link_start, m_node_links, m_node_tet_start, m_node_tets;

@@ -280,7 +280,7 @@ class ContactSolver {
   Scalar m_max_face_edge{0};
   std::vector<std::uint32_t> m_face_stamp;
   std::uint32_t m_stamp{0};
-  std::vector<Scalar> m_face_acc;  // 10 per node: k, F (3), k delta, k delta p (3), k delta v_s
+  std::vector<Scalar> m_face_acc;  // 11 per node: k, F (3), k delta, k delta p (3), k delta v_s (3)
   fsm::detail::ReservedVector<Index> m_touched;  // (capacity n; a copy keeps it)
   Index m_dominant_region{-1};
   Scalar m_max_radius{0};

@@ -11,6 +11,7 @@
 
 #include "fsm/collision/contact.hpp"
 #include "fsm/collision/shapes.hpp"
+#include "fsm/detail/reserved_vector.hpp"
 #include "fsm/error.hpp"
 #include "fsm/force_model.hpp"
 #include "fsm/sphere_model.hpp"
@@ -203,9 +204,10 @@ class Grasper {
   Index m_id{0};
   Scalar m_opening{0}, m_widest{0};
   Pose<Scalar> m_pose{};
-  std::vector<std::pair<Scalar, Index>> m_candidates;
-  std::vector<Index> m_held;
-  std::vector<Vector3<Scalar>> m_offsets;
+  // Refilled in update() within the capacity the constructor reserved (a copy keeps it).
+  fsm::detail::ReservedVector<std::pair<Scalar, Index>> m_candidates;
+  fsm::detail::ReservedVector<Index> m_held;
+  fsm::detail::ReservedVector<Vector3<Scalar>> m_offsets;
 };
 
 }  // namespace fsm::collision

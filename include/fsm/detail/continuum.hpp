@@ -37,6 +37,7 @@
 #include <vector>
 
 #include "fsm/detail/parallel.hpp"
+#include "fsm/detail/reserved_vector.hpp"
 #include "fsm/detail/simd_links.hpp"
 #include "fsm/detail/simd_tets.hpp"
 #include "fsm/sphere_model.hpp"
@@ -1596,7 +1597,7 @@ class ContinuumTerm {
   Scalar m_element_tangent_quality{Scalar(default_element_tangent_quality)};
   std::vector<std::uint8_t> m_poor_shape;       // per element: quality below the threshold
   std::vector<std::uint8_t> m_element_tangent;  // per element, at the last add_forces()
-  std::vector<Index> m_dense;
+  ReservedVector<Index> m_dense;  // refilled by add_forces() within refresh()'s capacity
   std::vector<Scalar> m_dense_rotation, m_dense_coefficient;
   // Per-step scratch (sized by refresh).
   // edge_block_size per edge: n, (h^2 + h tau) k and 0 (a link's block, simd_links.hpp).

@@ -5,10 +5,12 @@
 ///
 /// A step must not allocate. A list that the step clears and refills (`clear()`, then
 /// `push_back()` within what refresh() reserved) is safe in its owner, but a copy of a
-/// std::vector gets only as much capacity as the source has elements: a copied ForceModel or
-/// ContactSolver would then allocate inside its first step that needs more. This type copies the
+/// std::vector gets only as much capacity as the source has elements: a copied ForceModel,
+/// ContactSolver, Grasper or TopologyEditor would then allocate inside its first step that needs
+/// more. This type copies the
 /// capacity too (the allocation happens in the copy, outside the step). Moves keep the buffer, as
-/// std::vector's do. It adds no data member, so it converts to `const std::vector<T>&`.
+/// std::vector's do. It derives publicly and adds no data member, so it passes as a
+/// `const std::vector<T>&` (a copy made through that base loses the capacity, as any vector copy).
 
 #include <vector>
 
