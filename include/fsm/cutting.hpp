@@ -546,8 +546,8 @@ class TopologyEditor {
   // The pieces: a label per node, fixed nodes per label, the counts; the nodes' links and
   // continuum tetrahedra and the two fronts of update_pieces()' searches.
   std::vector<Index> m_label, m_label_fixed;
-  std::vector<Index> m_anchor;  // per label: a node known to be in it (update_pieces)
-  detail::ReservedVector<Index> m_touched;
+  std::vector<Index> m_anchor;              // per label: a node known to be in it (update_pieces)
+  detail::ReservedVector<Index> m_touched;  // the labels update_pieces() gave an anchor
   Index m_pieces{0}, m_loose{0}, m_next_label{0};
   bool m_labelled{false};
   std::vector<Index> m_node_link_start, m_node_links, m_node_tet_start, m_node_tets;

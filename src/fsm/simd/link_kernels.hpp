@@ -353,7 +353,7 @@ void link_apply(const std::int32_t* ij, const double* blocks, const double* p4, 
 // The first four entries are one batch: (a n0, a n1, a n2, a n0) times (n0, n1, n2, n1), plus b on
 // the diagonal lanes; xz and yz are (a n0) n2 and (a n1) n2 of the same products. Per entry these
 // are ForceModel::add_link_node_blocks's operations in its order: the results are identical to
-// its (where that loop is not contracted into FMA, which an FSM_NATIVE build may do).
+// that loop's (where it is not contracted into FMA, which an FSM_NATIVE build may do).
 template <class Arch>
 void link_node_blocks(const std::int32_t* ij, const double* blocks, double* out, std::int32_t begin,
                       std::int32_t end) noexcept {
