@@ -278,15 +278,6 @@ class ForceModel {
                                     const ConstPositionsRef& x_before) const noexcept;
   /// @}
 
-  /// @brief A read-only run of node indices (for range-for).
-  struct NodeList {
-    const Index* first;
-    const Index* last;
-    [[nodiscard]] const Index* begin() const noexcept { return first; }
-    [[nodiscard]] const Index* end() const noexcept { return last; }
-    [[nodiscard]] Index size() const noexcept { return Index(last - first); }
-  };
-
   /// @name Sleeping
   /// An asleep node is held still like a fixed one (inverse mass 0), and links none of whose ends
   /// can move are skipped by the force loops. Simulation's sleep policy drives this.
@@ -299,8 +290,8 @@ class ForceModel {
   /// @brief 1 for a node that cannot move now (fixed or asleep).
   [[nodiscard]] const std::vector<std::uint8_t>& immobile() const noexcept { return m_immobile; }
   /// @brief The immobile nodes' indices, ascending.
-  [[nodiscard]] NodeList immobile_nodes() const noexcept {
-    return {m_immobile_nodes.data(), m_immobile_nodes.data() + m_num_immobile};
+  [[nodiscard]] const std::vector<Index>& immobile_nodes() const noexcept {
+    return m_immobile_nodes;
   }
   /// @brief Links the force loops visit: [begin, end) ranges with at least one mobile end.
   [[nodiscard]] const std::vector<std::pair<Index, Index>>& active_links() const noexcept {
@@ -469,12 +460,10 @@ class ForceModel {
   Options m_options;
   Index m_num_nodes{0};
   std::vector<std::uint8_t> m_asleep, m_immobile;
-  // The immobile ones' indices, the first m_num_immobile of n (sized by refresh(), so that
-  // update_mobility() never allocates, in a copy too).
-  std::vector<Index> m_immobile_nodes;
-  Index m_num_immobile{0};
-  // Active and force link ranges: refilled within the capacity refresh() reserves (a copy keeps
-  // it: ReservedVector), so that update_ranges() never allocates.
+  // The immobile ones' indices, and the active and force link ranges: refilled within the
+  // capacity refresh() reserves (a copy keeps it: ReservedVector), so that update_mobility() and
+  // update_ranges() never allocate.
+  detail::ReservedVector<Index> m_immobile_nodes;
   detail::ReservedVector<std::pair<Index, Index>> m_ranges;
   Scalar m_implicit_h{0};
   std::vector<Scalar> m_external;

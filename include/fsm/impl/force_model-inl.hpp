@@ -168,6 +168,15 @@ Scalar contact_onset(Scalar depth, Scalar onset, Scalar& slope) noexcept {
   return depth - Scalar(0.5) * onset;
 }
 
+// The regularised Coulomb friction's force per unit slip speed, mu f_n / sqrt(|slip|^2 + eps^2)
+// (0 without friction: the frictionless part contacts skip the square root).
+template <typename Scalar>
+Scalar friction_slope(const PenaltyContact<Scalar>& c, Scalar fn,
+                      const Vector3<Scalar>& slip) noexcept {
+  if (c.friction == Scalar(0)) return Scalar(0);
+  return c.friction * fn / std::sqrt(slip.squaredNorm() + c.friction_speed * c.friction_speed);
+}
+
 // The force on `node` at (x, v) in the tangent-plane model, the instrument moved by
 // `extra_depth` along the normal; fn gets the normal force, slip the tangential relative velocity.
 // Clamped, the normal force never pulls (k s(depth) - c s'(depth) v_n below zero gives zero).
@@ -195,11 +204,7 @@ Vector3<Scalar> contact_force(const PenaltyContact<Scalar>& c, const Scalar* x, 
     linear = c.stiffness * (s0 + slope0 * (depth - c.solve_depth)) - c.damping * slope0 * vn;
   }
   slip = u - vn * c.normal;
-  Vector3<Scalar> F = (clamp ? fn : linear) * c.normal;
-  if (c.friction != Scalar(0)) {  // (frictionless part contacts skip the square root)
-    const Scalar r = std::sqrt(slip.squaredNorm() + c.friction_speed * c.friction_speed);
-    F -= (c.friction * fn / r) * slip;
-  }
+  const Vector3<Scalar> F = (clamp ? fn : linear) * c.normal - friction_slope(c, fn, slip) * slip;
   return F.allFinite() ? F : Vector3<Scalar>::Zero();
 }
 
@@ -432,7 +437,7 @@ void ForceModel<Scalar>::refresh(const SphereModel<Scalar>& model) {
   }
   if (m_asleep.size() != std::size_t(n)) m_asleep.assign(std::size_t(n), 0);
   m_immobile.resize(std::size_t(n));
-  m_immobile_nodes.resize(std::size_t(n));
+  m_immobile_nodes.reserve(std::size_t(n));
   m_inverse_mass.resize(n);
   m_force_link.assign(std::size_t(model.num_links()), 1);
   // Links inside a continuum region carry no force: the region's elements do.
@@ -501,11 +506,11 @@ template <typename Scalar>
 void ForceModel<Scalar>::update_mobility(const SphereModel<Scalar>& model) noexcept {
   const auto mass = model.masses();
   const auto fixed = model.fixed();
-  m_num_immobile = 0;
+  m_immobile_nodes.clear();
   for (Index i = 0; i < m_num_nodes; ++i) {
     m_immobile[std::size_t(i)] = (fixed[i] || m_asleep[std::size_t(i)]) ? 1 : 0;
     m_inverse_mass[i] = m_immobile[std::size_t(i)] ? Scalar(0) : Scalar(1) / mass[i];
-    if (m_immobile[std::size_t(i)]) m_immobile_nodes[std::size_t(m_num_immobile++)] = i;
+    if (m_immobile[std::size_t(i)]) m_immobile_nodes.push_back(i);
   }
   update_ranges(model);
 }
@@ -969,10 +974,7 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
     // The law's slope at this state (1 for the plain penalty; the onset's s' otherwise).
     const Scalar slope = detail::contact_slope(c, c.solve_depth);
     c.normal_block = active ? slope * (h2 * c.stiffness + h * c.damping) : Scalar(0);
-    c.tangent_block = active && c.friction != Scalar(0)
-                          ? h * c.friction * fn /
-                                std::sqrt(slip.squaredNorm() + c.friction_speed * c.friction_speed)
-                          : Scalar(0);
+    c.tangent_block = active ? h * detail::friction_slope(c, fn, slip) : Scalar(0);
     Vector3<Scalar> r = h * F;
     if (active) r -= h2 * slope * c.stiffness * c.normal.dot(u) * c.normal;
     rhs.row(c.node) += r.transpose();
@@ -1346,8 +1348,7 @@ typename ForceModel<Scalar>::SparseMatrix ForceModel<Scalar>::damping_matrix(
     const Scalar adv = detail::surface_advance(c, m_contact_time);
     (void)detail::contact_force(c, xp, vp, adv, fn, slip);
     if (!(detail::contact_depth(c, xp, adv) > Scalar(0))) continue;
-    const Scalar ct =
-        c.friction * fn / std::sqrt(slip.squaredNorm() + c.friction_speed * c.friction_speed);
+    const Scalar ct = detail::friction_slope(c, fn, slip);
     const Matrix3<Scalar> nn = c.normal * c.normal.transpose();
     const Scalar slope = detail::contact_slope(c, detail::contact_depth(c, xp, adv));
     const Matrix3<Scalar> B = slope * c.damping * nn + ct * (Matrix3<Scalar>::Identity() - nn);
