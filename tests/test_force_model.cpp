@@ -454,11 +454,11 @@ TEST(ForceModel, SimdConjugateGradientMatchesTheScalarSolve) {
 }
 
 // The continuum law's element kernels (Options::simd, where the CPU has them) give the scalar
-// loops' forces, energy, element tangents, implicit right-hand side and diagonal, and product: a
-// lattice of 29 elements per part (so the last batch of four is partly filled), linear and
-// bilinear, squeezed, stretched past the switch and with one element pushed through its base (J
-// below j_min, inverted), random velocities, one element cut out, one and two threads; with the
-// element strain and with node-smoothed strains (the element share on the kernel).
+// loops' forces, energy, element tangents, implicit right-hand side, diagonal and diagonal blocks,
+// and product: a lattice of 29 elements per part (so the last batch of four is partly filled),
+// linear and bilinear, squeezed, stretched past the switch and with one element pushed through its
+// base (J below j_min, inverted), random velocities, one element cut out, one and two threads;
+// with the element strain and with node-smoothed strains (the element share on the kernel).
 TEST(ForceModel, SimdElementKernelsMatchTheScalarLoops) {
   // Without AVX2+FMA (or without xsimd at build time) Options::simd runs the scalar loops, so
   // there is nothing to compare; the scalar loops have their own tests.
@@ -534,6 +534,12 @@ TEST(ForceModel, SimdElementKernelsMatchTheScalarLoops) {
           simd.prepare_implicit(model, h, JacobianForm::definite, blocks.data(), rb, db);
           EXPECT_LE((ra - rb).cwiseAbs().maxCoeff(), 1e-13 * ra.cwiseAbs().maxCoeff());
           EXPECT_LE((da - db).cwiseAbs().maxCoeff(), 1e-13 * da.cwiseAbs().maxCoeff());
+          // The block-Jacobi blocks: the edges' on the links' node-block kernel, the volumetric
+          // ones on the elements'.
+          Eigen::ArrayXd pa(6 * n), pb(6 * n);
+          scalar.implicit_diagonal_blocks(model, blocks.data(), pa.data());
+          simd.implicit_diagonal_blocks(model, blocks.data(), pb.data());
+          EXPECT_LE((pa - pb).abs().maxCoeff(), 1e-13 * pa.abs().maxCoeff());
           // The product A p: the edge springs and the volumetric passes on the kernels.
           Positions<double> p(n, 3), ya(n, 3), yb(n, 3);
           for (Index i = 0; i < n; ++i)

@@ -575,9 +575,11 @@ class ContinuumTerm {
     Scalar energy(0);
     Index inverted = 0;
     for (std::size_t t = 0; t < nt; ++t) {
-      if (m_removed[t]) {  // zero gradients: the later passes add nothing for it
+      if (m_removed[t]) {  // zero gradients and H: the later passes add nothing for it
         Scalar* g = grad(t);
         for (int k = 0; k < 12; ++k) g[4 * k] = Scalar(0);
+        Scalar* o = &m_batch_out[std::size_t(simd::tet_out_stride) * (t / 4) + t % 4];
+        for (int k = 0; k < 9; ++k) o[4 * k] = Scalar(0);
         m_element_tangent[t] = 0;
         m_state_factor[t] = Scalar(1);
         continue;
@@ -641,6 +643,10 @@ class ContinuumTerm {
       }
     }
     m_watch = false;
+    // Pass 2 on the SIMD kernel where there is one: it takes the pressures negated.
+    simd::TetForceScatterKernel scatter = nullptr;
+    if constexpr (std::is_same_v<Scalar, double>)
+      if (simd_active()) scatter = simd::tet_force_scatter_kernel();
     // Nodal pressures: p_a = K (J_a - 1) + tau K dJ_a/dt, J_a = v_a / V_a.
     for (Index a = 0; a < m_num_nodes; ++a) {
       const Scalar V = m_node_volume[std::size_t(a)];
@@ -648,28 +654,38 @@ class ContinuumTerm {
       const Scalar K = m_node_bulk[std::size_t(a)];
       const Scalar d = volume_now[a] / V - Scalar(1);
       energy += Scalar(0.5) * V * K * d * d;
-      volume_now[a] =
+      const Scalar p =
           K * ((volume_now[a] / V - Scalar(1)) + m_node_tau[std::size_t(a)] * rate[a] / V);
+      volume_now[a] = scatter ? -p : p;
     }
     m_forces_energy = by_products ? energy : std::numeric_limits<Scalar>::quiet_NaN();
     m_forces_inverted = by_products ? inverted : Index(-1);
     // Pass 2: f = sum_T (H_T - pbar_T grad v_T), pbar_T the mean of its nodal pressures, in one
     // scatter (H's columns are the forces on corners 1-3, corner 0 gets minus their sum).
+    // On the kernel, it leaves -pbar_T in m_pressure; a removed element's zero H and gradients
+    // add nothing.
+    if constexpr (std::is_same_v<Scalar, double>)
+      if (scatter)
+        scatter(m_batch_nodes.data(), m_batch_out.data(), m_batch_grad.data(), volume_now, f,
+                m_pressure.data(), 0, std::int32_t(m_batch_nodes.size() / 16), std::int32_t(nt));
     for (std::size_t t = 0; t < nt; ++t) {
       const Index* id = &m_tets[4 * t];
       if (m_removed[t]) {
         m_pressure[t] = m_edge_factor[t] = Scalar(0);
         continue;
       }
-      const Scalar* g = grad(t);
-      const Scalar* o = &m_batch_out[std::size_t(simd::tet_out_stride) * (t / 4) + t % 4];
       const Scalar p =
-          (volume_now[id[0]] + volume_now[id[1]] + volume_now[id[2]] + volume_now[id[3]]) /
-          Scalar(4);
+          scatter
+              ? -m_pressure[t]
+              : (volume_now[id[0]] + volume_now[id[1]] + volume_now[id[2]] + volume_now[id[3]]) /
+                    Scalar(4);
       m_pressure[t] = p;
       m_edge_factor[t] = m_element_tangent[t]
                              ? Scalar(0)
                              : m_state_factor[t] + m_pressure_share[t] * std::abs(p) / m_c10[t];
+      if (scatter) continue;
+      const Scalar* g = grad(t);
+      const Scalar* o = &m_batch_out[std::size_t(simd::tet_out_stride) * (t / 4) + t % 4];
       Scalar h0[3] = {0, 0, 0};
       for (int k = 1; k < 4; ++k) {
         Scalar* q = f + 3 * std::ptrdiff_t(id[k]);
@@ -791,6 +807,13 @@ class ContinuumTerm {
     const Scalar h2 = h * h;
     // The diagonal blocks (add_diagonal_blocks()) in the same passes; diag(A) from them at the end.
     std::fill(m_node_blocks.begin(), m_node_blocks.end(), Scalar(0));
+    simd::LinkNodeBlocksKernel edge_blocks = nullptr;
+    simd::TetNodeBlocksKernel volumetric_blocks = nullptr;
+    if constexpr (std::is_same_v<Scalar, double>)
+      if (simd_active()) {
+        edge_blocks = simd::link_node_blocks_kernel();
+        volumetric_blocks = simd::tet_node_blocks_kernel();
+      }
     // The edges' directions and rates of extension, and the nodal volumes' rates: kept by a
     // viscous add_forces() at this x, v.
     const bool kept = m_rate_generation == m_generation;
@@ -813,9 +836,17 @@ class ContinuumTerm {
       const Vector3<Scalar> r = h2 * k * m_edge_rate[e] * n;
       add(rhs, i, r);
       add(rhs, j, -r);
-      add_block(i, n[0], n[1], n[2], B[3]);
-      add_block(j, n[0], n[1], n[2], B[3]);
+      if (!edge_blocks) {
+        add_block(i, n[0], n[1], n[2], B[3]);
+        add_block(j, n[0], n[1], n[2], B[3]);
+      }
     }
+    // The edges' blocks on the links' kernel where there is one: an edge's block (n, a, 0) is a
+    // link's (simd_links.hpp).
+    if constexpr (std::is_same_v<Scalar, double>)
+      if (edge_blocks)
+        edge_blocks(m_edges.data(), m_edge_block.data(), m_node_blocks.data(), 0,
+                    std::int32_t(num_edges()));
     ++m_generation;  // the F slots below become rotations: the state is this call's now
     if (kept) m_rate_generation = m_generation;
     // The element tangents: h^2 c V |sym(Q^T dF)|^2 at this x (add_forces() left F in the slot).
@@ -866,7 +897,12 @@ class ContinuumTerm {
     // between the elements sharing a pair: exact on a single element, not on a mesh (neither the
     // diagonal nor a bound of it; docs/physics.md section 5). The exact one would need a pass
     // over the node pairs.
-    for (std::size_t t = 0; t < m_volume.size(); ++t) {
+    if constexpr (std::is_same_v<Scalar, double>)
+      if (volumetric_blocks)
+        volumetric_blocks(m_batch_nodes.data(), m_batch_grad.data(), m_node_coefficient.data(),
+                          m_node_blocks.data(), 0, std::int32_t(m_batch_nodes.size() / 16),
+                          std::int32_t(m_volume.size()));
+    for (std::size_t t = 0; t < (volumetric_blocks ? 0 : m_volume.size()); ++t) {
       const Index* id = &m_tets[4 * t];
       Scalar c(0);
       for (int a = 0; a < 4; ++a) c += m_node_coefficient[std::size_t(id[a])];

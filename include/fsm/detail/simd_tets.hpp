@@ -54,8 +54,28 @@ using TetGatherKernel = void (*)(const std::int32_t* nodes, const double* grad, 
                                  double* y, int stride, std::int32_t begin, std::int32_t end,
                                  std::int32_t nt);
 
+/// The forces' scatter of ContinuumTerm::add_forces (its second pass) over batches [begin, end),
+/// of which only the first `nt` elements count: with `out` and `grad` the force kernel's outputs
+/// and `s` each node's pressure negated, y[a] += H_a + c_T grad_a v_T (y: 3 doubles per node), c_T
+/// the mean of s over the corners (minus the element's pressure), written to `mean` per element.
+/// H_a is `out`'s column for corners 1-3, minus their sum for corner 0. The same operations in the
+/// same order per element as that pass, so the same forces where no element shares a node with
+/// another of its batch (else the sums at a node come in another order).
+using TetForceScatterKernel = void (*)(const std::int32_t* nodes, const double* out,
+                                       const double* grad, const double* s, double* y, double* mean,
+                                       std::int32_t begin, std::int32_t end, std::int32_t nt);
+/// The volumetric part of ContinuumTerm's 3 x 3 diagonal blocks over batches [begin, end), of
+/// which only the first `nt` elements count: per element, a = (the sum of `coefficient` over its
+/// corners) / 16, and a g_k g_k^T added to corner k's 6 doubles (xx, yy, zz, xy, xz, yz) in
+/// `blocks`, g_k the volume gradient at corner k (`grad` as above). Each product rounds as
+/// ContinuumTerm::add_block's.
+using TetNodeBlocksKernel = void (*)(const std::int32_t* nodes, const double* grad,
+                                     const double* coefficient, double* blocks, std::int32_t begin,
+                                     std::int32_t end, std::int32_t nt);
 /// The kernels for this CPU, or nullptr (no SIMD build, or a CPU without AVX2 and FMA).
 TetForceKernel tet_force_kernel() noexcept;
+TetForceScatterKernel tet_force_scatter_kernel() noexcept;
+TetNodeBlocksKernel tet_node_blocks_kernel() noexcept;
 TetEnergyKernel tet_energy_kernel() noexcept;
 TetSpreadKernel tet_spread_kernel() noexcept;
 TetGatherKernel tet_gather_kernel() noexcept;

@@ -9,17 +9,19 @@
 #include "fsm/detail/simd_tets.hpp"
 
 // The kernels whose getters take no argument: X(type, getter name).
-#define FSM_SIMD_PLAIN_KERNELS(X)                  \
-  X(LinkApplyKernel, link_apply_kernel)            \
-  X(LinkEnergyKernel, link_energy_kernel)          \
-  X(LinkNodeBlocksKernel, link_node_blocks_kernel) \
-  X(TetForceKernel, tet_force_kernel)              \
-  X(TetEnergyKernel, tet_energy_kernel)            \
-  X(TetSpreadKernel, tet_spread_kernel)            \
-  X(TetGatherKernel, tet_gather_kernel)            \
-  X(PreconditionKernel, precondition_kernel)       \
-  X(CgUpdateKernel, cg_update_kernel)              \
-  X(CgDirectionKernel, cg_direction_kernel)        \
+#define FSM_SIMD_PLAIN_KERNELS(X)                    \
+  X(LinkApplyKernel, link_apply_kernel)              \
+  X(LinkEnergyKernel, link_energy_kernel)            \
+  X(LinkNodeBlocksKernel, link_node_blocks_kernel)   \
+  X(TetForceKernel, tet_force_kernel)                \
+  X(TetEnergyKernel, tet_energy_kernel)              \
+  X(TetSpreadKernel, tet_spread_kernel)              \
+  X(TetGatherKernel, tet_gather_kernel)              \
+  X(TetForceScatterKernel, tet_force_scatter_kernel) \
+  X(TetNodeBlocksKernel, tet_node_blocks_kernel)     \
+  X(PreconditionKernel, precondition_kernel)         \
+  X(CgUpdateKernel, cg_update_kernel)                \
+  X(CgDirectionKernel, cg_direction_kernel)          \
   X(DotKernel, dot_kernel)
 
 namespace fsm::detail::simd {

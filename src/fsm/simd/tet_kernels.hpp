@@ -213,9 +213,13 @@ void tet_spread(const std::int32_t* nodes, const double* grad, const double* p4,
   }
 }
 
-template <class Arch>
-void tet_gather(const std::int32_t* nodes, const double* grad, const double* s, double* y,
-                int stride, std::int32_t begin, std::int32_t end, std::int32_t nt) noexcept {
+// The corners' scatter the gather kernel and the forces' scatter share: per element c_T, the mean
+// of s over its corners, and y[a] += c_T grad_a v_T, plus H_a with `h` (WithH: the forces'
+// scatter, corners in add_forces's order 1, 2, 3, 0; H_0 = ((0 - H_1) - H_2) - H_3 as there).
+template <class Arch, bool WithH>
+inline void tet_corner_scatter(const std::int32_t* nodes, const double* h, const double* grad,
+                               const double* s, double* y, int stride, double* mean,
+                               std::int32_t begin, std::int32_t end, std::int32_t nt) noexcept {
   using B = xsimd::batch<double, Arch>;
   for (std::int32_t b = begin; b < end; ++b) {
     const std::int32_t* n = nodes + 16 * std::int64_t(b);
@@ -224,12 +228,29 @@ void tet_gather(const std::int32_t* nodes, const double* grad, const double* s, 
     double c[4];
     for (int l = 0; l < 4; ++l)
       c[l] = l < lanes ? 0.25 * (s[n[l]] + s[n[4 + l]] + s[n[8 + l]] + s[n[12 + l]]) : 0.0;
+    if (mean)
+      for (int l = 0; l < lanes; ++l) mean[4 * std::int64_t(b) + l] = c[l];
     const B C{c[0], c[1], c[2], c[3]};  // from registers: a load of four scalar stores stalls
-    for (int k = 0; k < 4; ++k) {
+    B h0[3];
+    if constexpr (WithH) {
+      const double* o = h + tet_out_stride * std::int64_t(b);
+      for (int a = 0; a < 3; ++a)
+        h0[a] = B(0.0) - B::load_unaligned(o + 4 * a) - B::load_unaligned(o + 4 * (a + 3)) -
+                B::load_unaligned(o + 4 * (a + 6));
+    }
+    for (int corner = 0; corner < 4; ++corner) {
+      const int k = WithH ? (corner + 1) % 4 : corner;
+      B t[3];
+      for (int a = 0; a < 3; ++a) {
+        t[a] = C * B::load_unaligned(g + 4 * (3 * k + a));
+        if constexpr (WithH)
+          t[a] = (k == 0 ? h0[a]
+                         : B::load_unaligned(h + tet_out_stride * std::int64_t(b) +
+                                             4 * (a + 3 * (k - 1)))) +
+                 t[a];
+      }
       B r[4];
-      transpose4<Arch>(C * B::load_unaligned(g + 4 * (3 * k)),
-                       C * B::load_unaligned(g + 4 * (3 * k + 1)),
-                       C * B::load_unaligned(g + 4 * (3 * k + 2)), B(0.0), r[0], r[1], r[2], r[3]);
+      transpose4<Arch>(t[0], t[1], t[2], B(0.0), r[0], r[1], r[2], r[3]);
       if (stride == 4) {
         for (int l = 0; l < lanes; ++l) {
           double* q = y + 4 * std::int64_t(n[4 * k + l]);
@@ -249,19 +270,75 @@ void tet_gather(const std::int32_t* nodes, const double* grad, const double* s, 
   }
 }
 
+template <class Arch>
+void tet_gather(const std::int32_t* nodes, const double* grad, const double* s, double* y,
+                int stride, std::int32_t begin, std::int32_t end, std::int32_t nt) noexcept {
+  tet_corner_scatter<Arch, false>(nodes, nullptr, grad, s, y, stride, nullptr, begin, end, nt);
+}
+
+template <class Arch>
+void tet_force_scatter(const std::int32_t* nodes, const double* out, const double* grad,
+                       const double* s, double* y, double* mean, std::int32_t begin,
+                       std::int32_t end, std::int32_t nt) noexcept {
+  tet_corner_scatter<Arch, true>(nodes, out, grad, s, y, 3, mean, begin, end, nt);
+}
+
+// The volumetric diagonal blocks (simd_tets.hpp): per corner, (A g0) g0, (A g1) g1, (A g2) g2,
+// (A g0) g1, (A g0) g2, (A g1) g2 for the batch's four elements, then added lane by lane.
+template <class Arch>
+void tet_node_blocks(const std::int32_t* nodes, const double* grad, const double* coefficient,
+                     double* blocks, std::int32_t begin, std::int32_t end,
+                     std::int32_t nt) noexcept {
+  using B = xsimd::batch<double, Arch>;
+  alignas(32) double xz[4], yz[4];
+  for (std::int32_t b = begin; b < end; ++b) {
+    const std::int32_t* n = nodes + 16 * std::int64_t(b);
+    const double* g = grad + tet_grad_stride * std::int64_t(b);
+    const int lanes = nt - 4 * b < 4 ? int(nt - 4 * b) : 4;
+    double c[4];
+    for (int l = 0; l < 4; ++l)
+      c[l] = l < lanes ? (coefficient[n[l]] + coefficient[n[4 + l]] + coefficient[n[8 + l]] +
+                          coefficient[n[12 + l]]) /
+                             16.0
+                       : 0.0;
+    const B A{c[0], c[1], c[2], c[3]};
+    for (int k = 0; k < 4; ++k) {
+      const B g0 = B::load_unaligned(g + 4 * (3 * k)), g1 = B::load_unaligned(g + 4 * (3 * k + 1)),
+              g2 = B::load_unaligned(g + 4 * (3 * k + 2));
+      const B a0 = A * g0, a1 = A * g1;
+      B r[4];
+      transpose4<Arch>(a0 * g0, a1 * g1, (A * g2) * g2, a0 * g1, r[0], r[1], r[2], r[3]);
+      (a0 * g2).store_aligned(xz);
+      (a1 * g2).store_aligned(yz);
+      for (int l = 0; l < lanes; ++l) {
+        double* o = blocks + 6 * std::int64_t(n[4 * k + l]);
+        (B::load_unaligned(o) + r[l]).store_unaligned(o);
+        o[4] += xz[l];
+        o[5] += yz[l];
+      }
+    }
+  }
+}
+
 // The getters of one instruction set's element kernels, as FSM_SIMD_LINK_GETTERS.
-#define FSM_SIMD_TET_GETTERS(isa, Arch)                \
-  TetForceKernel isa##_tet_force_kernel() noexcept {   \
-    return &tet_forces<Arch>;                          \
-  }                                                    \
-  TetEnergyKernel isa##_tet_energy_kernel() noexcept { \
-    return &tet_energy<Arch>;                          \
-  }                                                    \
-  TetSpreadKernel isa##_tet_spread_kernel() noexcept { \
-    return &tet_spread<Arch>;                          \
-  }                                                    \
-  TetGatherKernel isa##_tet_gather_kernel() noexcept { \
-    return &tet_gather<Arch>;                          \
+#define FSM_SIMD_TET_GETTERS(isa, Arch)                             \
+  TetForceKernel isa##_tet_force_kernel() noexcept {                \
+    return &tet_forces<Arch>;                                       \
+  }                                                                 \
+  TetEnergyKernel isa##_tet_energy_kernel() noexcept {              \
+    return &tet_energy<Arch>;                                       \
+  }                                                                 \
+  TetSpreadKernel isa##_tet_spread_kernel() noexcept {              \
+    return &tet_spread<Arch>;                                       \
+  }                                                                 \
+  TetGatherKernel isa##_tet_gather_kernel() noexcept {              \
+    return &tet_gather<Arch>;                                       \
+  }                                                                 \
+  TetForceScatterKernel isa##_tet_force_scatter_kernel() noexcept { \
+    return &tet_force_scatter<Arch>;                                \
+  }                                                                 \
+  TetNodeBlocksKernel isa##_tet_node_blocks_kernel() noexcept {     \
+    return &tet_node_blocks<Arch>;                                  \
   }
 
 }  // namespace fsm::detail::simd
