@@ -7,6 +7,7 @@
 #include <string>
 
 #include "common.hpp"
+#include "fsm/detail/continuum.hpp"
 #include "fsm/detail/simd_links.hpp"
 #include "fsm/detail/simd_solver.hpp"
 #include "fsm/detail/simd_tets.hpp"
@@ -521,6 +522,30 @@ TEST(ForceModel, SimdElementKernelsMatchTheScalarLoops) {
           EXPECT_GT(a.cwiseAbs().maxCoeff(), 0.0);
           EXPECT_LE((a - b).cwiseAbs().maxCoeff(), 1e-13 * a.cwiseAbs().maxCoeff());
           EXPECT_EQ(scalar.continuum_element_tangents(), simd.continuum_element_tangents());
+          {
+            // The elements' pressures, signed, which the forces' scatter kernel hands back (only
+            // their size reaches the forces and the tangent).
+            detail::ContinuumTerm<double> ts, tk;
+            for (detail::ContinuumTerm<double>* term : {&ts, &tk}) {
+              term->refresh(model);
+              term->set_simd(term == &tk);
+              term->set_smoothing(smoothing);
+              std::vector<double> f(3 * std::size_t(model.num_nodes()), 0.0);
+              term->add_forces(model.positions().data(), model.velocities().data(), f.data());
+            }
+            ASSERT_EQ(ts.num_elements(), tk.num_elements());
+            double largest = 0, worst = 0;
+            int compressed = 0, stretched = 0;
+            for (std::size_t t = 0; t < std::size_t(ts.num_elements()); ++t) {
+              largest = std::max(largest, std::abs(ts.pressure(t)));
+              worst = std::max(worst, std::abs(ts.pressure(t) - tk.pressure(t)));
+              compressed += ts.pressure(t) < 0 ? 1 : 0;
+              stretched += ts.pressure(t) > 0 ? 1 : 0;
+            }
+            EXPECT_GT(compressed, 0);
+            EXPECT_GT(stretched, 0);
+            EXPECT_LE(worst, 1e-13 * largest);
+          }
           const double ea = scalar.elastic_energy(model, model.positions());
           const double eb = simd.elastic_energy(model, model.positions());
           EXPECT_GT(ea, 0.0);

@@ -650,7 +650,10 @@ class ContinuumTerm {
     // Nodal pressures: p_a = K (J_a - 1) + tau K dJ_a/dt, J_a = v_a / V_a.
     for (Index a = 0; a < m_num_nodes; ++a) {
       const Scalar V = m_node_volume[std::size_t(a)];
-      if (!(V > Scalar(0))) continue;
+      if (!(V > Scalar(0))) {  // no pressure (its volume sum is 0 unless V rounded to 0)
+        volume_now[a] = Scalar(0);
+        continue;
+      }
       const Scalar K = m_node_bulk[std::size_t(a)];
       const Scalar d = volume_now[a] / V - Scalar(1);
       energy += Scalar(0.5) * V * K * d * d;
@@ -663,7 +666,7 @@ class ContinuumTerm {
     // Pass 2: f = sum_T (H_T - pbar_T grad v_T), pbar_T the mean of its nodal pressures, in one
     // scatter (H's columns are the forces on corners 1-3, corner 0 gets minus their sum).
     // On the kernel, it leaves -pbar_T in m_pressure; a removed element's zero H and gradients
-    // add nothing.
+    // add nothing (while its corners' pressures are finite: a non-finite one fails the step).
     if constexpr (std::is_same_v<Scalar, double>)
       if (scatter)
         scatter(m_batch_nodes.data(), m_batch_out.data(), m_batch_grad.data(), volume_now, f,
@@ -726,6 +729,9 @@ class ContinuumTerm {
   /// The elastic energy (J) and the number of inverted elements at the x of the last add_forces(),
   /// as energy() and inverted() give them; NaN and -1 with smoothed strains (not computed).
   [[nodiscard]] Scalar forces_energy() const noexcept { return m_forces_energy; }
+  /// Element t's mean nodal pressure (Pa; negative in compression) at the last add_forces(), 0 for
+  /// a removed one.
+  [[nodiscard]] Scalar pressure(std::size_t t) const noexcept { return m_pressure[t]; }
   [[nodiscard]] Index forces_inverted() const noexcept { return m_forces_inverted; }
   /// Changes with every add_forces() and every change to the term: the per-step state that
   /// prepare_implicit() reads is the one of the add_forces() call that left this value.

@@ -3,8 +3,9 @@
 // The continuum law's element loop on SIMD registers (xsimd), chosen at run time for the CPU, as
 // the link kernels are (simd_links.hpp): a plain interface, no Eigen. ContinuumTerm<double> uses
 // it for its per-element work (deformation gradient, neo-Hookean stress, element forces, volume
-// gradients, energy) and keeps the scatter to the nodes, the pressures and the flags; its scalar
-// loop stays the reference the tests compare with.
+// gradients, energy), the forces' scatter to the nodes, the volumetric product and the volumetric
+// part of the block-Jacobi blocks, and keeps the nodal pressures and the flags; its scalar loops
+// stay the reference the tests compare with.
 
 #include <cstdint>
 
@@ -56,11 +57,12 @@ using TetGatherKernel = void (*)(const std::int32_t* nodes, const double* grad, 
 
 /// The forces' scatter of ContinuumTerm::add_forces (its second pass) over batches [begin, end),
 /// of which only the first `nt` elements count: with `out` and `grad` the force kernel's outputs
-/// and `s` each node's pressure negated, y[a] += H_a + c_T grad_a v_T (y: 3 doubles per node), c_T
-/// the mean of s over the corners (minus the element's pressure), written to `mean` per element.
-/// H_a is `out`'s column for corners 1-3, minus their sum for corner 0. The same operations in the
-/// same order per element as that pass, so the same forces where no element shares a node with
-/// another of its batch (else the sums at a node come in another order).
+/// and `s` each node's pressure negated (0 at a node without volume), y[a] += H_a + c_T grad_a v_T
+/// (y: 3 doubles per node), c_T the mean of s over the corners (minus the element's pressure),
+/// written to `mean` per element. H_a is `out`'s column for corners 1-3, minus their sum for
+/// corner 0. The same roundings in the same order per element as that pass, so the same forces
+/// where no element shares a node with another of its batch (else the sums at a node come in
+/// another order).
 using TetForceScatterKernel = void (*)(const std::int32_t* nodes, const double* out,
                                        const double* grad, const double* s, double* y, double* mean,
                                        std::int32_t begin, std::int32_t end, std::int32_t nt);

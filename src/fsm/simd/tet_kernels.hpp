@@ -1,8 +1,9 @@
 #pragma once
 
 // The element kernels' body (simd_tets.hpp), instantiated per instruction set by
-// tet_kernels_<isa>.cpp. The same formulas as detail::deviatoric, detail::volume_factor and
-// ContinuumTerm::add_forces's first pass, four elements per batch.
+// tet_kernels_<isa>.cpp. The same formulas as detail::deviatoric, detail::volume_factor,
+// ContinuumTerm::add_forces's two passes, its volumetric product and prepare_implicit's volumetric
+// blocks, four elements per batch.
 
 #include <xsimd/xsimd.hpp>
 
