@@ -729,10 +729,10 @@ class ContinuumTerm {
   /// The elastic energy (J) and the number of inverted elements at the x of the last add_forces(),
   /// as energy() and inverted() give them; NaN and -1 with smoothed strains (not computed).
   [[nodiscard]] Scalar forces_energy() const noexcept { return m_forces_energy; }
+  [[nodiscard]] Index forces_inverted() const noexcept { return m_forces_inverted; }
   /// Element t's mean nodal pressure (Pa; negative in compression) at the last add_forces(), 0 for
   /// a removed one.
   [[nodiscard]] Scalar pressure(std::size_t t) const noexcept { return m_pressure[t]; }
-  [[nodiscard]] Index forces_inverted() const noexcept { return m_forces_inverted; }
   /// Changes with every add_forces() and every change to the term: the per-step state that
   /// prepare_implicit() reads is the one of the add_forces() call that left this value.
   [[nodiscard]] std::uint64_t generation() const noexcept { return m_generation; }
