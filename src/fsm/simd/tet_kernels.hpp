@@ -215,8 +215,9 @@ void tet_spread(const std::int32_t* nodes, const double* grad, const double* p4,
 }
 
 // The corners' scatter the gather kernel and the forces' scatter share: per element c_T, the mean
-// of s over its corners, and y[a] += c_T grad_a v_T, plus H_a with `h` (WithH: the forces'
-// scatter, corners in add_forces's order 1, 2, 3, 0; H_0 = ((0 - H_1) - H_2) - H_3 as there).
+// of s over its corners, and y[a] += c_T grad_a v_T; with WithH (the forces' scatter) plus H_a from
+// `h`, c_T written to `mean`, and the corners in add_forces's order 1, 2, 3, 0 (H_0 = ((0 - H_1) -
+// H_2) - H_3 as there).
 template <class Arch, bool WithH>
 inline void tet_corner_scatter(const std::int32_t* nodes, const double* h, const double* grad,
                                const double* s, double* y, int stride, double* mean,
@@ -229,7 +230,7 @@ inline void tet_corner_scatter(const std::int32_t* nodes, const double* h, const
     double c[4];
     for (int l = 0; l < 4; ++l)
       c[l] = l < lanes ? 0.25 * (s[n[l]] + s[n[4 + l]] + s[n[8 + l]] + s[n[12 + l]]) : 0.0;
-    if (mean)
+    if constexpr (WithH)
       for (int l = 0; l < lanes; ++l) mean[4 * std::int64_t(b) + l] = c[l];
     const B C{c[0], c[1], c[2], c[3]};  // from registers: a load of four scalar stores stalls
     B h0[3];
