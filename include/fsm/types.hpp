@@ -6,6 +6,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <cstring>
+#include <type_traits>
 
 /// Inlines a small helper of a hot loop whatever the compiler's budget (GCC stopped inlining the
 /// continuum law's volume gradient when its class grew, costing 8 % of the step).
@@ -15,6 +17,13 @@
 #define FSM_ALWAYS_INLINE __forceinline
 #else
 #define FSM_ALWAYS_INLINE inline
+#endif
+
+/// Promises that a pointer's array overlaps no other array the loop touches.
+#if defined(__GNUC__) || defined(__clang__) || defined(_MSC_VER)
+#define FSM_RESTRICT __restrict
+#else
+#define FSM_RESTRICT
 #endif
 
 namespace fsm {
@@ -45,5 +54,28 @@ using Vector3 = Eigen::Matrix<Scalar, 3, 1>;
 /// @brief A 3 x 3 matrix.
 template <typename Scalar>
 using Matrix3 = Eigen::Matrix<Scalar, 3, 3>;
+
+namespace detail {
+
+/// Whether all `n` scalars from `p` are finite. Eigen's allFinite() walks a row-major `N x 3`
+/// array column by column with a branch per entry (3.4 us of a 44 us uterus-sized Heun step for
+/// its three checks); this is one pass in memory order with no branch, which the compiler turns
+/// into vector instructions: `x - x` is a zero for a finite x and NaN otherwise, and the bits of
+/// every difference but its sign (a zero is -0 when rounding downward) are or-ed together.
+template <typename Scalar>
+[[nodiscard]] inline bool all_finite(const Scalar* p, std::ptrdiff_t n) noexcept {
+  using Bits = std::conditional_t<sizeof(Scalar) == 8, std::uint64_t, std::uint32_t>;
+  static_assert(sizeof(Bits) == sizeof(Scalar), "a float or a double");
+  Bits any = 0;
+  for (std::ptrdiff_t k = 0; k < n; ++k) {
+    const Scalar d = p[k] - p[k];
+    Bits b;
+    std::memcpy(&b, &d, sizeof b);
+    any |= b;
+  }
+  return (any << 1) == 0;  // (the sign bit shifted out)
+}
+
+}  // namespace detail
 
 }  // namespace fsm

@@ -193,8 +193,8 @@ inline Scalar deviatoric(const Matrix3<Scalar>& F, Scalar c10, Scalar c10_large,
 /// as it is).
 template <typename Scalar>
 inline void pad_rows4(const Scalar* a, Index n, Scalar* a4) noexcept {
-  for (Index i = 0; i < n; ++i)
-    for (int c = 0; c < 3; ++c) a4[4 * std::ptrdiff_t(i) + c] = a[3 * std::ptrdiff_t(i) + c];
+  for (Index i = 0; i < n; ++i)  // (one 16- and one 8-byte move a node, not three of 8)
+    std::memcpy(a4 + 4 * std::ptrdiff_t(i), a + 3 * std::ptrdiff_t(i), 3 * sizeof(Scalar));
 }
 
 /// The element term: rest data, per-step scratch, forces, energy and the implicit tangent.

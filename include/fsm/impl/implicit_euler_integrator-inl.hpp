@@ -157,7 +157,7 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg(SphereModel<Scalar>& 
   }
   m_previous_dt = m_last_dt > Scalar(0) ? dt : Scalar(0);
   for (const Index i : forces.immobile_nodes()) m_dv.row(i).setZero();
-  if (!m_dv.allFinite()) m_dv.setZero();
+  if (!detail::all_finite(m_dv.data(), m_dv.size())) m_dv.setZero();
 
   m_simd = {};
   if constexpr (std::is_same_v<Scalar, double>) {
@@ -236,7 +236,7 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg_pass(
     reached = it <= m_options.max_iterations;  // else the loop ran out at its cap
     it = std::min(it, m_options.max_iterations);
   }
-  if (!ok || !m_dv.allFinite()) {
+  if (!ok || !detail::all_finite(m_dv.data(), m_dv.size())) {
     reset();
     return {false, it, reached};
   }
@@ -296,7 +296,7 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_assembled(SphereModel<Sc
       if (solver.info() != Eigen::Success) return {false, 0};
       dv = solver.solve(b);
     }
-    if (!dv.allFinite()) return {false, 0};
+    if (!detail::all_finite(dv.data(), dv.size())) return {false, 0};
     auto x = model.positions();
     auto v = model.velocities();
     Eigen::Map<Vec>(v.data(), 3 * n) += dv;

@@ -392,14 +392,14 @@ StepReport<Scalar> Simulation<Scalar>::advance(Scalar dt) noexcept {
   auto v = m_model.velocities();
   const auto ext = m_forces.external_forces();
   if (m_model.num_nodes() != Index(m_saved_x.rows()) || m_model.num_links() != m_num_links ||
-      !ext.allFinite()) {
+      !detail::all_finite(ext.data(), ext.size())) {
     report.status = StepStatus::invalid_input;
     return report;
   }
   // Between steps the caller may have moved nodes or changed velocities: check the edit, keep fixed
   // nodes still, and start a new energy reference (that energy did not come through the forces).
   if (!state_matches_saved()) {
-    if (!x.allFinite() || !v.allFinite()) {
+    if (!detail::all_finite(x.data(), x.size()) || !detail::all_finite(v.data(), v.size())) {
       restore_state();
       report.status = StepStatus::invalid_input;
       return report;
@@ -434,7 +434,8 @@ StepReport<Scalar> Simulation<Scalar>::advance(Scalar dt) noexcept {
       good = r.ok;
     }
     m_forces.set_contact_time(contact_time + dt);
-    good = good && x.allFinite() && v.allFinite();
+    good = good && detail::all_finite(x.data(), x.size()) &&
+           detail::all_finite(v.data(), v.size());
     if (good) m_forces.finish_contacts(m_model);
     Scalar work(0), energy = std::numeric_limits<Scalar>::quiet_NaN();
     if (good && policy.check_energy) {

@@ -16,12 +16,6 @@ inline std::string format_number(double v) {
   std::snprintf(buf, sizeof buf, "%.6g", v);
   return buf;
 }
-template <typename Scalar>
-bool all_finite(const Scalar* p, std::size_t n) {
-  for (std::size_t k = 0; k < n; ++k)
-    if (!std::isfinite(p[k])) return false;
-  return true;
-}
 }  // namespace detail
 
 template <typename Scalar>
