@@ -434,8 +434,7 @@ StepReport<Scalar> Simulation<Scalar>::advance(Scalar dt) noexcept {
       good = r.ok;
     }
     m_forces.set_contact_time(contact_time + dt);
-    good = good && detail::all_finite(x.data(), x.size()) &&
-           detail::all_finite(v.data(), v.size());
+    good = good && detail::all_finite(x.data(), x.size()) && detail::all_finite(v.data(), v.size());
     if (good) m_forces.finish_contacts(m_model);
     Scalar work(0), energy = std::numeric_limits<Scalar>::quiet_NaN();
     if (good && policy.check_energy) {
