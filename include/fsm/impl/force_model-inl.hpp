@@ -580,6 +580,20 @@ bool ForceModel<Scalar>::simd_ready(Index n) const noexcept {
 template <typename Scalar>
 void ForceModel<Scalar>::pad_states(const Scalar* x, const Scalar* v, Index n) noexcept {
   if constexpr (std::is_same_v<Scalar, double>) {
+    // On the pool for a large model: on one thread the other spun through it, 9 % of a two-thread
+    // evaluation of 952k links (docs/benchmarks.md); below this size a dispatch costs more.
+    constexpr Index kPoolNodes = 16384;
+    detail::WorkerPool* pool = n >= kPoolNodes ? m_pool.get() : nullptr;
+    if (pool && pool->size() > 1) {
+      auto pad = [&](int t, int T) {
+        const auto [begin, end] = detail::share(n, t, T);
+        const std::ptrdiff_t b = begin;
+        detail::pad_rows4(x + 3 * b, end - begin, m_x4.data() + 4 * b);
+        if (v) detail::pad_rows4(v + 3 * b, end - begin, m_v4.data() + 4 * b);
+      };
+      pool->run(pad);
+      return;
+    }
     detail::pad_rows4(x, n, m_x4.data());
     if (v) detail::pad_rows4(v, n, m_v4.data());
   } else {
