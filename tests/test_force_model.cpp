@@ -153,38 +153,52 @@ TEST(ForceModel, SimdLinkKernelMatchesTheScalarLoop) {
 }
 
 // A model large enough (18,252 nodes) that the SIMD kernels' padded copies of the states are
-// made on the pool's two threads, each its share of the nodes: the forces, the implicit step's
-// right-hand side and the product A p still give the scalar loops' results.
+// made on the pool's two threads, each its share of the nodes: the forces, then (at another
+// state, so that a stale copy would show) the implicit step's blocks, right-hand side and
+// diagonal, and the product A p give the scalar loops' results.
 TEST(ForceModel, SimdKernelsOnALargeModelPadTheStatesOnThePool) {
   if (std::string(detail::simd::instruction_set()) == "none")
     GTEST_SKIP() << "no SIMD link kernel for this CPU or build";
+  if (detail::max_threads() < 2) GTEST_SKIP() << "one CPU: no pool";
   std::mt19937 rng(8);
   std::normal_distribution<double> g(0.0, 1.0);
   SphereModel<double> model = random_model<double>(rng, {26, 25, 25}, 0.25, true);
   ASSERT_GE(model.num_nodes(), 16384);
   const Index n = model.num_nodes();
-  for (Index i = 0; i < n; ++i)
-    for (int c = 0; c < 3; ++c) {
-      model.positions()(i, c) *= 1.0 + 0.02 * g(rng);
-      model.velocities()(i, c) = 0.05 * g(rng);
-    }
+  auto perturb = [&] {
+    for (Index i = 0; i < n; ++i)
+      for (int c = 0; c < 3; ++c) {
+        model.positions()(i, c) *= 1.0 + 0.02 * g(rng);
+        model.velocities()(i, c) = 0.05 * g(rng);
+      }
+  };
+  perturb();
   ForceModel<double>::Options o;
-  o.threads = std::min(2, detail::max_threads());
+  o.threads = 2;
   o.simd = false;
   ForceModel<double> scalar(model, o);
   o.simd = true;
   ForceModel<double> simd(model, o);
+  ASSERT_TRUE(simd.uses_pool());
   Positions<double> a(n, 3), b(n, 3);
   scalar.evaluate(model, model.positions(), model.velocities(), a);
   simd.evaluate(model, model.positions(), model.velocities(), b);
   EXPECT_LE((a - b).cwiseAbs().maxCoeff(), 1e-13 * a.cwiseAbs().maxCoeff());
+  perturb();
   const std::size_t nb =
       std::size_t(ForceModel<double>::implicit_block_size) * std::size_t(model.num_links());
-  std::vector<double> ba(nb), bb(nb);
+  std::vector<double> ba(nb, 7.0), bb(nb, -7.0);
   Positions<double> ra(n, 3), rb(n, 3), da(n, 3), db(n, 3), p(n, 3), ya(n, 3), yb(n, 3);
   scalar.prepare_implicit(model, 1e-3, JacobianForm::symmetric, ba.data(), ra, da);
   simd.prepare_implicit(model, 1e-3, JacobianForm::symmetric, bb.data(), rb, db);
+  double worst = 0, scale = 0;
+  for (std::size_t k = 0; k < nb; ++k) {
+    worst = std::max(worst, std::abs(ba[k] - bb[k]));
+    scale = std::max(scale, std::abs(ba[k]));
+  }
+  EXPECT_LE(worst, 1e-13 * scale);
   EXPECT_LE((ra - rb).cwiseAbs().maxCoeff(), 1e-13 * ra.cwiseAbs().maxCoeff());
+  EXPECT_LE((da - db).cwiseAbs().maxCoeff(), 1e-13 * da.cwiseAbs().maxCoeff());
   for (Index i = 0; i < n; ++i)
     for (int c = 0; c < 3; ++c) p(i, c) = g(rng);
   scalar.apply_implicit(model, ba.data(), p, ya);

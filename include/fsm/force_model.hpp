@@ -434,7 +434,8 @@ class ForceModel {
   void resize_scratch();
   // Options::simd is on and the padded copies are sized for n nodes (double only: see refresh()).
   [[nodiscard]] bool simd_ready(Index n) const noexcept;
-  // Copies x (and v, unless null) into m_x4 (m_v4), four per node, for the SIMD kernels.
+  // Copies x (and v, unless null) into m_x4 (m_v4), four per node, for the SIMD kernels. On a
+  // large model it runs on the pool: never call it from a pool job.
   void pad_states(const Scalar* x, const Scalar* v, Index n) noexcept;
 
   void update_mobility(const SphereModel<Scalar>& model) noexcept;

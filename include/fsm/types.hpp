@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cstddef>
 #include <cstdint>
 #include <cstring>
 #include <type_traits>
@@ -58,22 +59,27 @@ using Matrix3 = Eigen::Matrix<Scalar, 3, 3>;
 namespace detail {
 
 /// Whether all `n` scalars from `p` are finite. Eigen's allFinite() walks a row-major `N x 3`
-/// array column by column with a branch per entry (3.4 us of a 44 us uterus-sized Heun step for
-/// its three checks); this is one pass in memory order with no branch, which the compiler turns
-/// into vector instructions: `x - x` is a zero for a finite x and NaN otherwise, and the bits of
-/// every difference but its sign (a zero is -0 when rounding downward) are or-ed together.
+/// array column by column with a branch per entry (most of `Simulation::advance`'s 7.7 % of a
+/// 44 us uterus-sized Heun step, for its three checks); this is one pass in memory order with no
+/// branch and no floating-point operation, which the compiler turns into vector instructions. A
+/// value is not finite when its exponent bits are all set; adding one unit of the exponent to
+/// those bits alone then carries into the sign bit, and the sums of all values are or-ed. So the
+/// result does not depend on the rounding mode, raises no floating-point exception and holds
+/// under -ffast-math, where `x != x` tests may be folded away.
 template <typename Scalar>
 [[nodiscard]] inline bool all_finite(const Scalar* p, std::ptrdiff_t n) noexcept {
   using Bits = std::conditional_t<sizeof(Scalar) == 8, std::uint64_t, std::uint32_t>;
   static_assert(sizeof(Bits) == sizeof(Scalar), "a float or a double");
+  constexpr int kMantissa = sizeof(Scalar) == 8 ? 52 : 23;
+  constexpr Bits kSign = Bits(1) << (8 * sizeof(Bits) - 1);
+  constexpr Bits kExponent = (kSign - 1) & ~((Bits(1) << kMantissa) - 1);
   Bits any = 0;
   for (std::ptrdiff_t k = 0; k < n; ++k) {
-    const Scalar d = p[k] - p[k];
     Bits b;
-    std::memcpy(&b, &d, sizeof b);
-    any |= b;
+    std::memcpy(&b, p + k, sizeof b);
+    any |= (b & kExponent) + (Bits(1) << kMantissa);
   }
-  return (any << 1) == 0;  // (the sign bit shifted out)
+  return (any & kSign) == 0;
 }
 
 }  // namespace detail

@@ -581,7 +581,8 @@ template <typename Scalar>
 void ForceModel<Scalar>::pad_states(const Scalar* x, const Scalar* v, Index n) noexcept {
   if constexpr (std::is_same_v<Scalar, double>) {
     // On the pool for a large model: on one thread the other spun through it, 9 % of a two-thread
-    // evaluation of 952k links (docs/benchmarks.md); below this size a dispatch costs more.
+    // evaluation of 952k links (docs/benchmarks.md). The size is a cautious choice, not measured:
+    // it keeps the extra dispatch away from the models a real-time step runs (a few thousand).
     constexpr Index kPoolNodes = 16384;
     detail::WorkerPool* pool = n >= kPoolNodes ? m_pool.get() : nullptr;
     if (pool && pool->size() > 1) {
