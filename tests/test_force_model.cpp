@@ -152,6 +152,21 @@ TEST(ForceModel, SimdLinkKernelMatchesTheScalarLoop) {
       }
 }
 
+// The implicit step's link blocks, right-hand sides and diagonals of two force models (scalar
+// and SIMD loops) agree to rounding.
+void expect_prepared_alike(const std::vector<double>& ba, const std::vector<double>& bb,
+                           const Positions<double>& ra, const Positions<double>& rb,
+                           const Positions<double>& da, const Positions<double>& db) {
+  double worst = 0, scale = 0;
+  for (std::size_t k = 0; k < ba.size(); ++k) {
+    worst = std::max(worst, std::abs(ba[k] - bb[k]));
+    scale = std::max(scale, std::abs(ba[k]));
+  }
+  EXPECT_LE(worst, 1e-13 * scale);
+  EXPECT_LE((ra - rb).cwiseAbs().maxCoeff(), 1e-13 * ra.cwiseAbs().maxCoeff());
+  EXPECT_LE((da - db).cwiseAbs().maxCoeff(), 1e-13 * da.cwiseAbs().maxCoeff());
+}
+
 // A model large enough (18,252 nodes) that the SIMD kernels' padded copies of the states are
 // made on the pool's two threads, each its share of the nodes: the forces, then (at another
 // state, so that a stale copy would show) the implicit step's blocks, right-hand side and
@@ -191,14 +206,7 @@ TEST(ForceModel, SimdKernelsOnALargeModelPadTheStatesOnThePool) {
   Positions<double> ra(n, 3), rb(n, 3), da(n, 3), db(n, 3), p(n, 3), ya(n, 3), yb(n, 3);
   scalar.prepare_implicit(model, 1e-3, JacobianForm::symmetric, ba.data(), ra, da);
   simd.prepare_implicit(model, 1e-3, JacobianForm::symmetric, bb.data(), rb, db);
-  double worst = 0, scale = 0;
-  for (std::size_t k = 0; k < nb; ++k) {
-    worst = std::max(worst, std::abs(ba[k] - bb[k]));
-    scale = std::max(scale, std::abs(ba[k]));
-  }
-  EXPECT_LE(worst, 1e-13 * scale);
-  EXPECT_LE((ra - rb).cwiseAbs().maxCoeff(), 1e-13 * ra.cwiseAbs().maxCoeff());
-  EXPECT_LE((da - db).cwiseAbs().maxCoeff(), 1e-13 * da.cwiseAbs().maxCoeff());
+  expect_prepared_alike(ba, bb, ra, rb, da, db);
   for (Index i = 0; i < n; ++i)
     for (int c = 0; c < 3; ++c) p(i, c) = g(rng);
   scalar.apply_implicit(model, ba.data(), p, ya);
@@ -261,14 +269,7 @@ TEST(ForceModel, SimdImplicitLinkKernelsMatchTheScalarLoops) {
           Positions<double> ra(n, 3), rb(n, 3), da(n, 3), db(n, 3), p(n, 3), ya(n, 3), yb(n, 3);
           scalar.prepare_implicit(model, h, form, ba.data(), ra, da);
           simd.prepare_implicit(model, h, form, bb.data(), rb, db);
-          double worst = 0, scale = 0;
-          for (std::size_t k = 0; k < nb; ++k) {
-            worst = std::max(worst, std::abs(ba[k] - bb[k]));
-            scale = std::max(scale, std::abs(ba[k]));
-          }
-          EXPECT_LE(worst, 1e-13 * scale);
-          EXPECT_LE((ra - rb).cwiseAbs().maxCoeff(), 1e-13 * ra.cwiseAbs().maxCoeff());
-          EXPECT_LE((da - db).cwiseAbs().maxCoeff(), 1e-13 * da.cwiseAbs().maxCoeff());
+          expect_prepared_alike(ba, bb, ra, rb, da, db);
           // The per-node 3 x 3 blocks of the block-Jacobi preconditioner.
           Eigen::ArrayXd pa(6 * n), pb(6 * n);
           scalar.implicit_diagonal_blocks(model, ba.data(), pa.data());
