@@ -172,6 +172,8 @@ void expect_prepared_alike(const std::vector<double>& ba, const std::vector<doub
 // state, so that a stale copy would show) the implicit step's blocks, right-hand side and
 // diagonal, and the product A p give the scalar loops' results.
 TEST(ForceModel, SimdKernelsOnALargeModelPadTheStatesOnThePool) {
+  // Skipped where there is nothing to compare: without a SIMD kernel both models run the scalar
+  // loops, and on one CPU no pool exists (ForceModel caps its threads at the CPUs it may use).
   if (std::string(detail::simd::instruction_set()) == "none")
     GTEST_SKIP() << "no SIMD link kernel for this CPU or build";
   if (detail::max_threads() < 2) GTEST_SKIP() << "one CPU: no pool";

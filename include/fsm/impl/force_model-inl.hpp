@@ -584,8 +584,7 @@ void ForceModel<Scalar>::pad_states(const Scalar* x, const Scalar* v, Index n) n
     // evaluation of 952k links (docs/benchmarks.md). The size is a cautious choice, not measured:
     // it keeps the extra dispatch away from the models a real-time step runs (a few thousand).
     constexpr Index kPoolNodes = 16384;
-    detail::WorkerPool* pool = n >= kPoolNodes ? m_pool.get() : nullptr;
-    if (pool && pool->size() > 1) {
+    if (detail::WorkerPool* pool = n >= kPoolNodes ? m_pool.get() : nullptr) {  // (2+ threads)
       auto pad = [&](int t, int T) {
         const auto [begin, end] = detail::share(n, t, T);
         const std::ptrdiff_t b = begin;
