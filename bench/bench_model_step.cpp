@@ -230,7 +230,7 @@ int main(int argc, char** argv) {
           "\"element_tangent_quality\": %g, \"element_tangents\": %d, \"fluttered\": %d, "
           "\"flutter_guard\": %s, \"extrapolated_warm_start\": %s, \"reuse_end_forces\": %s, "
           "\"gravity\": \"%s\", \"smoothing\": \"%s\", \"adaptive_threads\": %s, "
-          "\"pool_share\": %.3f, \"nu\": %g}\n",
+          "\"pool_share\": %.3f, \"links_partitioned\": %s, \"nu\": %g}\n",
           path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
           int(sim.model().num_tetrahedra()), law.c_str(), threads, tolerance,
           probe ? "true" : "false", int(probe_contacts), int(contacts.num_contacts()), steps,
@@ -240,15 +240,17 @@ int main(int argc, char** argv) {
           int(sim.forces().continuum_fluttered_elements()), flutter_guard ? "true" : "false",
           extrapolate ? "true" : "false", reuse ? "true" : "false", gravity_y ? "-y" : "-z",
           smoothing.c_str(), adaptive ? "true" : "false", double(on_pool) / double(steps),
+          sim.forces().links_partitioned() ? "true" : "false",
           sim.model().region(0).material.poisson_ratio);
     else
       std::printf(
-          "%s: %d spheres, %d links, %d tetrahedra; %s law (%s strain), %d thread(s), CG to %g; "
+          "%s: %d spheres, %d links, %d tetrahedra; %s law (%s strain), %d thread(s)%s, CG to %g; "
           "probe on '%s' (%d contacts of %d)\n  1 ms step: mean %.1f us, p50 %.1f, p99 "
           "%.1f, max %.1f; %.2f CG iterations; %ld steps retried as half steps, %ld diverged "
           "(%ld before timing); %d elements with the element tangent, %d of them fluttered\n",
           path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
-          int(sim.model().num_tetrahedra()), law.c_str(), smoothing.c_str(), threads, tolerance,
+          int(sim.model().num_tetrahedra()), law.c_str(), smoothing.c_str(), threads,
+          sim.forces().links_partitioned() ? " (links shared by node)" : "", tolerance,
           target->name.c_str(), int(probe_contacts), int(contacts.num_contacts()), mean * 1e6,
           pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it, recovered, diverged, diverged_before,
           int(sim.forces().continuum_element_tangents()),

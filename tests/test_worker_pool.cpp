@@ -105,6 +105,83 @@ TEST(WorkerPool, HandleCopiesMakeTheirOwnPool) {
   EXPECT_EQ(c.get(), nullptr);
 }
 
+// Checks a LinkPartition of links `ij` among T threads: the node bounds rise from 0 to n, the
+// owned ranges and the bands between them cover the links once, in order, every owned link has
+// both ends in its thread's nodes, and band_links counts the bands.
+void expect_partition(const detail::LinkPartition& p, const std::vector<Index>& ij, Index n,
+                      int T) {
+  const auto L = Index(ij.size() / 2);
+  ASSERT_EQ(p.threads(), T);
+  ASSERT_EQ(p.nodes.size(), std::size_t(T) + 1);
+  EXPECT_EQ(p.nodes.front(), 0);
+  EXPECT_EQ(p.nodes.back(), n);
+  EXPECT_EQ(p.owned.front().first, 0);
+  EXPECT_EQ(p.owned.back().second, L);
+  Index band = 0;
+  for (int t = 0; t < T; ++t) {
+    const auto k = std::size_t(t);
+    EXPECT_LE(p.nodes[k], p.nodes[k + 1]);
+    EXPECT_LE(p.owned[k].first, p.owned[k].second);
+    if (t + 1 < T) {
+      EXPECT_LE(p.owned[k].second, p.owned[k + 1].first);
+      band += p.owned[k + 1].first - p.owned[k].second;
+    }
+    for (Index l = p.owned[k].first; l < p.owned[k].second; ++l)
+      for (int e = 0; e < 2; ++e) {
+        const Index v = ij[std::size_t(2 * l + e)];
+        ASSERT_TRUE(v >= p.nodes[k] && v < p.nodes[k + 1])
+            << "thread " << t << " link " << l << " node " << v;
+      }
+  }
+  EXPECT_EQ(p.band_links, band);
+}
+
+// detail::partition_links: on any links (sorted by node as a lattice's, shuffled, or with empty
+// stretches of nodes) and for 2-5 threads, a partition it accepts keeps each thread's links on
+// its own nodes and covers every link once. Under the limit ForceModel uses (a longest path at
+// most an eighth of the links above an even share), a lattice's sorted links are accepted on two
+// threads with a band of one layer of nodes' links, and shuffled ones are refused (their
+// partition would leave one thread every link).
+TEST(WorkerPool, LinkPartitionKeepsEachThreadsLinksOnItsNodes) {
+  std::mt19937 rng(3);
+  for (const Eigen::Vector3i cells :
+       {Eigen::Vector3i(1, 1, 1), Eigen::Vector3i(6, 5, 4), Eigen::Vector3i(20, 18, 16)}) {
+    const TetrahedralMesh<double> mesh =
+        make_cube_lattice(Vector3<double>::Zero().eval(), cells, 0.01);
+    SphereModel<double> model;
+    add_tetrahedral_part(model, mesh, model.add_region("block", tissue<double>(3e3, 10.26)), 0.005);
+    const Index n = model.num_nodes(), L = model.num_links();
+    const std::vector<Index> sorted(model.links().data(), model.links().data() + 2 * L);
+    std::vector<Index> shuffled = sorted;
+    std::vector<Index> order(static_cast<std::size_t>(L));
+    for (Index l = 0; l < L; ++l) order[std::size_t(l)] = l;
+    std::shuffle(order.begin(), order.end(), rng);
+    for (Index l = 0; l < L; ++l)
+      for (int e = 0; e < 2; ++e)
+        shuffled[std::size_t(2 * l + e)] = sorted[std::size_t(2 * order[std::size_t(l)] + e)];
+    // The same links on nodes spread over 3 n, two of every three never touched.
+    std::vector<Index> spread = sorted;
+    for (Index& v : spread) v *= 3;
+    for (int T = 2; T <= 5; ++T) {
+      SCOPED_TRACE(testing::Message() << cells.transpose() << ", " << T << " threads");
+      // Any band accepted: the partition is valid whatever the order.
+      expect_partition(detail::partition_links(sorted.data(), L, n, T, L), sorted, n, T);
+      expect_partition(detail::partition_links(shuffled.data(), L, n, T, L), shuffled, n, T);
+      expect_partition(detail::partition_links(spread.data(), L, 3 * n, T, L), spread, 3 * n, T);
+      if (cells[0] < 20) continue;
+      EXPECT_EQ(detail::partition_links(shuffled.data(), L, n, T, L / 8).threads(), 0);
+      const detail::LinkPartition p = detail::partition_links(sorted.data(), L, n, T, L / 8);
+      if (T > 2 && p.threads() == 0) continue;  // (T - 1 bands: 6 % of the links each)
+      expect_partition(p, sorted, n, T);
+      // About one layer of nodes' links (21 x 19 of 6,783 nodes) per band.
+      EXPECT_LE(p.band_links, (T - 1) * L * 21 * 19 / 6783 * 11 / 10);
+      for (int t = 0; t < T; ++t)  // and each thread about its share
+        EXPECT_GE(p.owned[std::size_t(t)].second - p.owned[std::size_t(t)].first, L / (2 * T));
+    }
+    EXPECT_EQ(detail::partition_links(sorted.data(), L, n, 1, L).threads(), 0);
+  }
+}
+
 // A jittered lattice block with random masses and velocities and the bilinear law, its bottom
 // (z below 1e-9) fixed, from a fixed seed: the two-thread tests' model.
 SphereModel<double> fixed_random_block(unsigned seed, Eigen::Vector3i cells) {
@@ -152,6 +229,104 @@ TEST(WorkerPool, TwoThreadsPrepareTheImplicitSystemOfOne) {
   EXPECT_LE((b1 - b2).abs().maxCoeff(), 1e-13 * b1.abs().maxCoeff());
   // Off-diagonal entries are there: the links' n n^T, not only the mass.
   EXPECT_GT(b1.reshaped(6, n).bottomRows(3).abs().maxCoeff(), 0.0);
+}
+
+// evaluate(), prepare_implicit() and apply_implicit() on two threads with the links partitioned
+// (each thread adds its links straight into the outputs, then the band) and, on the same model
+// with its nodes renumbered at random, with the per-thread buffers: both give one thread's forces,
+// right-hand side, diagonal, per-node blocks and products A p to rounding, with the SIMD kernels
+// (whose padded states each thread then makes for its own nodes) and the scalar loops, some nodes
+// fixed (links with both ends fixed are out of the ranges), drag and external forces.
+TEST(WorkerPool, TwoThreadsEvaluateAndMultiplyLikeOneWithOrWithoutThePartition) {
+  if (detail::max_threads() < 2) GTEST_SKIP() << "a machine with one hardware thread";
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const Eigen::Vector3i cells(14, 12, 13);
+  TetrahedralMesh<double> mesh = make_cube_lattice(Vector3<double>::Zero().eval(), cells, 0.01);
+  for (const bool renumbered : {false, true}) {
+    SCOPED_TRACE(renumbered ? "nodes renumbered at random" : "lattice order");
+    TetrahedralMesh<double> m = mesh;
+    if (renumbered) {
+      std::vector<Index> to(std::size_t(mesh.vertices.rows()));
+      for (std::size_t i = 0; i < to.size(); ++i) to[i] = Index(i);
+      std::shuffle(to.begin(), to.end(), rng);
+      for (Index i = 0; i < mesh.vertices.rows(); ++i)
+        m.vertices.row(to[std::size_t(i)]) = mesh.vertices.row(i);
+      for (Index t = 0; t < mesh.tetrahedra.rows(); ++t)
+        for (int c = 0; c < 4; ++c) m.tetrahedra(t, c) = to[std::size_t(mesh.tetrahedra(t, c))];
+    }
+    Material<double> mat = tissue<double>(3e3, 10.26);
+    mat.large_strain_modulus = 2 * mat.youngs_modulus;
+    mat.switch_strain = 0.05;
+    SphereModel<double> model;
+    add_tetrahedral_part(model, m, model.add_region("block", mat), 0.005);
+    const Index n = model.num_nodes();
+    for (Index i = 0; i < n; ++i) {
+      if (model.positions()(i, 2) < 1e-9 && i % 3 != 0) model.set_fixed(i);
+      for (int c = 0; c < 3; ++c) {
+        model.positions()(i, c) += 0.001 * u(rng);
+        model.velocities()(i, c) = 0.05 * u(rng);
+      }
+    }
+    for (const bool simd : {false, true}) {
+      SCOPED_TRACE(simd ? "SIMD" : "scalar");
+      Positions<double> f[2] = {Positions<double>(n, 3), Positions<double>(n, 3)};
+      Positions<double> y[2] = {Positions<double>(n, 3), Positions<double>(n, 3)};
+      Positions<double> rhs[2] = {Positions<double>(n, 3), Positions<double>(n, 3)};
+      Positions<double> diagonal[2] = {Positions<double>(n, 3), Positions<double>(n, 3)};
+      std::vector<double> node_blocks[2];
+      Positions<double> p(n, 3);
+      for (Index i = 0; i < n; ++i)
+        for (int c = 0; c < 3; ++c) p(i, c) = u(rng);
+      for (const int threads : {1, 2}) {
+        ForceModel<double>::Options o;
+        o.threads = threads;
+        o.simd = simd;
+        o.drag = 5;
+        ForceModel<double> forces(model, o);
+        forces.external_forces().row(n / 2) = Vector3<double>(0.1, -0.2, 0.3).transpose();
+        if (threads == 2) {
+          ASSERT_TRUE(forces.uses_pool());
+          EXPECT_EQ(forces.links_partitioned(), !renumbered);
+        }
+        f[threads - 1].setConstant(std::nan(""));
+        forces.evaluate(model, model.positions(), model.velocities(), f[threads - 1]);
+        std::vector<double> blocks(
+            std::size_t(ForceModel<double>::implicit_block_size * model.num_links()));
+        const std::size_t k = std::size_t(threads - 1);
+        rhs[k].setConstant(std::nan(""));
+        diagonal[k].setConstant(std::nan(""));
+        forces.prepare_implicit(model, 1e-3, JacobianForm::definite, blocks.data(), rhs[k],
+                                diagonal[k]);
+        node_blocks[k].assign(6 * std::size_t(n), std::nan(""));
+        forces.implicit_diagonal_blocks(model, blocks.data(), node_blocks[k].data());
+        y[threads - 1].setConstant(std::nan(""));
+        forces.apply_implicit(model, blocks.data(), p, y[threads - 1]);
+      }
+      ASSERT_TRUE(f[1].allFinite());
+      EXPECT_GT(f[0].cwiseAbs().maxCoeff(), 0.0);
+      EXPECT_LE((f[0] - f[1]).cwiseAbs().maxCoeff(), 1e-13 * f[0].cwiseAbs().maxCoeff());
+      ASSERT_TRUE(rhs[1].allFinite() && diagonal[1].allFinite());
+      EXPECT_LE((rhs[0] - rhs[1]).cwiseAbs().maxCoeff(), 1e-13 * rhs[0].cwiseAbs().maxCoeff());
+      EXPECT_LE((diagonal[0] - diagonal[1]).cwiseAbs().maxCoeff(),
+                1e-13 * diagonal[0].cwiseAbs().maxCoeff());
+      const Eigen::Map<const Eigen::ArrayXd> b1(node_blocks[0].data(), 6 * n);
+      const Eigen::Map<const Eigen::ArrayXd> b2(node_blocks[1].data(), 6 * n);
+      ASSERT_TRUE(b2.allFinite());
+      EXPECT_LE((b1 - b2).abs().maxCoeff(), 1e-13 * b1.abs().maxCoeff());
+      EXPECT_GT(b1.reshaped(6, n).bottomRows(3).abs().maxCoeff(), 0.0);  // the links' n n^T
+      ASSERT_TRUE(y[1].allFinite());
+      EXPECT_LE((y[0] - y[1]).cwiseAbs().maxCoeff(), 1e-13 * y[0].cwiseAbs().maxCoeff());
+      // The links' share of A p on the mobile nodes, beyond M (1 + h gamma) p: the comparison sees
+      // them (fixed nodes' rows are zero).
+      double links = 0;
+      for (Index i = 0; i < n; ++i)
+        if (!model.fixed()[i])
+          links = std::max(
+              links, (y[0].row(i) - 1.005 * model.masses()[i] * p.row(i)).cwiseAbs().maxCoeff());
+      EXPECT_GT(links, 1e-3 * y[0].cwiseAbs().maxCoeff());
+    }
+  }
 }
 
 // Twenty implicit steps of `m` on `threads` threads (CG far below the comparisons' tolerance:

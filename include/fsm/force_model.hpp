@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "fsm/detail/continuum.hpp"
+#include "fsm/detail/parallel.hpp"
 #include "fsm/detail/reserved_vector.hpp"
 #include "fsm/detail/worker_pool.hpp"
 #include "fsm/sphere_model.hpp"
@@ -203,6 +204,19 @@ class ForceModel {
   void use_pool(bool on) noexcept { m_pool.set_enabled(on); }
   /// @brief Whether the loops run on a pool (Options::threads above 1 and not set aside).
   [[nodiscard]] bool uses_pool() const noexcept { return m_pool.get() != nullptr; }
+  /// @brief Whether evaluate() on the pool shares the links so that no two threads' links meet at
+  /// a node (one dispatch, no per-thread buffers): evaluate(), prepare_implicit(), and
+  /// apply_implicit() when there are no continuum elements.
+  /// That takes links sorted by node over nodes numbered in space, as the lattice's and the
+  /// builder's edges are: the links between two threads' nodes (the band) then run on one thread,
+  /// and the partition is used while a thread's links plus the band are at most an eighth of the
+  /// links more than an even share. refresh() makes it for the pool's size; after set_options()
+  /// with another thread count it waits for the next refresh(). Otherwise each thread sums into
+  /// its own buffer.
+  [[nodiscard]] bool links_partitioned() const noexcept {
+    const detail::WorkerPool* pool = m_pool.get();
+    return pool && m_partition.threads() == pool->size();
+  }
   /// @brief Changes the options (thread buffers are resized here, not in the step); fsm::Error
   /// for threads < 1 or non-finite gravity.
   void set_options(const Options& options);
@@ -474,6 +488,9 @@ class ForceModel {
   std::vector<std::vector<Scalar>> m_node_scratch;   // one buffer of |V| per pool thread
   std::vector<std::vector<Scalar>> m_block_scratch;  // one buffer of 6 |V| per pool thread
   detail::PoolHandle m_pool;
+  // The links shared among the pool's threads without a common node, made by refresh() for the
+  // pool it had (evaluate() uses it while the pool's size matches; else the buffers).
+  detail::LinkPartition m_partition;
   std::vector<PenaltyContact<Scalar>> m_contacts;
   Index m_num_contacts{0};
   std::vector<HeldNode<Scalar>> m_held;

@@ -474,6 +474,10 @@ void ForceModel<Scalar>::refresh(const SphereModel<Scalar>& model) {
   clear_held();
   reserve_held(256);
   resize_scratch();
+  // Accepted while its longest path (a thread's links, then the bands on one thread) is at most
+  // an eighth of the links longer than an even share: the buffers' passes cost about that.
+  m_partition = detail::partition_links(model.links().data(), model.num_links(), n,
+                                        m_pool.threads(), model.num_links() / 8);
 }
 
 template <typename Scalar>
@@ -636,6 +640,10 @@ void ForceModel<Scalar>::evaluate(const SphereModel<Scalar>& model, const ConstP
   };
   const bool bilinear = model.has_bilinear_links();
   const DampingModel dm = m_options.damping;
+  // On the pool, with the links shared so that no two threads meet at a node (refresh()): one
+  // dispatch, no buffers. Otherwise each thread its own buffer, then their sum.
+  detail::WorkerPool* pool = m_pool.get();
+  const bool partitioned = links_partitioned();
   detail::simd::LinkForceKernel simd_kernel = nullptr;
   detail::simd::LinkArrays simd_links{};
   if constexpr (std::is_same_v<Scalar, double>) {
@@ -643,7 +651,7 @@ void ForceModel<Scalar>::evaluate(const SphereModel<Scalar>& model, const ConstP
       simd_kernel = detail::simd::link_force_kernel(bilinear, dm == DampingModel::along_link);
     if (simd_kernel) {  // one load per node: x, y, z padded to four
       simd_links = {L.ij, L.rest, L.ks, L.kd, L.kl, L.es};
-      pad_states(xp, vp, model.num_nodes());
+      if (!partitioned) pad_states(xp, vp, model.num_nodes());  // (else each thread its nodes)
     }
   }
   auto kernel_range = [&](Index begin, Index end, Scalar* out) {
@@ -676,8 +684,21 @@ void ForceModel<Scalar>::evaluate(const SphereModel<Scalar>& model, const ConstP
       if (lo < hi) kernel_range(lo, hi, out);
     }
   };
-  detail::scatter_links(m_pool.get(), model.num_nodes(), model.num_links(), f.data(), m_scratch,
-                        init, kernel);
+  if (partitioned) {
+    auto nodes = [&](Index begin, Index end) {
+      if constexpr (std::is_same_v<Scalar, double>)
+        if (simd_kernel) {  // the states its links read
+          const std::ptrdiff_t b = begin;
+          detail::pad_rows4(xp + 3 * b, end - begin, m_x4.data() + 4 * b);
+          detail::pad_rows4(vp + 3 * b, end - begin, m_v4.data() + 4 * b);
+        }
+      for (Index i = begin; i < end; ++i) init(i, f.data() + 3 * std::ptrdiff_t(i));
+    };
+    detail::scatter_links(*pool, m_partition, f.data(), nodes, kernel);
+  } else {
+    detail::scatter_links(pool, model.num_nodes(), model.num_links(), f.data(), m_scratch, init,
+                          kernel);
+  }
   {
     // (The states padded for the link kernel serve the element kernels too.)
     const Scalar *x4 = nullptr, *v4 = nullptr;
@@ -862,7 +883,7 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
                                                          dm == DampingModel::along_link);
       if (simd_prepare) {
         simd_links = {L.ij, L.rest, L.ks, L.kd, L.kl, L.es};
-        pad_states(x, v, model.num_nodes());
+        if (!links_partitioned()) pad_states(x, v, model.num_nodes());  // (else each thread)
       }
     }
     auto kernel = [&](Index begin, Index end, Scalar* out) {
@@ -917,7 +938,8 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
     };
     // The links' 3 x 3 diagonal blocks per node with the mass (the drag's Jacobian -gamma m I
     // joins it: M (1 + h gamma)), kept for implicit_diagonal_blocks(); diag(A) from them. On the
-    // pool each thread sums its links' blocks into its own buffer, then its share of the nodes.
+    // pool each thread sums its links' blocks into its own buffer, then its share of the nodes
+    // (or, with the links partitioned, straight into the per-node blocks).
     // (m_block_scratch has as many buffers as m_scratch: resize_scratch().)
     const Index n = model.num_nodes();
     auto copy_diagonal = [&](Index begin, Index end) {
@@ -934,8 +956,27 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
       init_link_node_blocks(model, h, begin, end, T);
       copy_diagonal(begin, end);
     };
-    if (!detail::scatter_links(m_pool.get(), n, model.num_links(), rhs.data(), m_scratch, init,
-                               kernel, links_done, nodes_done)) {
+    if (links_partitioned()) {
+      // Each thread its nodes (the states its links read, the rhs and the mass blocks), then its
+      // links' blocks, rhs and per-node blocks straight into the outputs; then the bands.
+      auto nodes = [&](Index begin, Index end) {
+        if constexpr (std::is_same_v<Scalar, double>)
+          if (simd_prepare) {
+            const std::ptrdiff_t b = begin;
+            detail::pad_rows4(x + 3 * b, end - begin, m_x4.data() + 4 * b);
+            detail::pad_rows4(v + 3 * b, end - begin, m_v4.data() + 4 * b);
+          }
+        for (Index i = begin; i < end; ++i) init(i, rhs.data() + 3 * std::ptrdiff_t(i));
+        init_link_node_blocks(model, h, begin, end, 0);
+      };
+      auto links_and_blocks = [&](Index begin, Index end, Scalar* out) {
+        kernel(begin, end, out);
+        add_link_node_blocks(model, blocks, begin, end, m_link_node_blocks.data());
+      };
+      detail::scatter_links(*m_pool.get(), m_partition, rhs.data(), nodes, links_and_blocks);
+      copy_diagonal(0, n);
+    } else if (!detail::scatter_links(m_pool.get(), n, model.num_links(), rhs.data(), m_scratch,
+                                      init, kernel, links_done, nodes_done)) {
       init_link_node_blocks(model, h, 0, n, 0);
       add_link_node_blocks(model, blocks, 0, model.num_links(), m_link_node_blocks.data());
       copy_diagonal(0, n);
@@ -1126,6 +1167,8 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
   };
   detail::WorkerPool* pool = m_pool.get();
   const int T = pool ? std::min<int>(pool->size(), static_cast<int>(m_scratch.size())) : 1;
+  // The link law alone on the pool, its links shared without a common node (as in evaluate()).
+  const bool partitioned = T > 1 && m_continuum.empty() && links_partitioned();
   detail::simd::LinkApplyKernel simd_apply = nullptr;
   if constexpr (std::is_same_v<Scalar, double>) {
     if (simd_ready(model.num_nodes())) simd_apply = detail::simd::link_apply_kernel();
@@ -1141,7 +1184,7 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
           out[k + c] = m * pp[k + c];
         }
       }
-    } else if (simd_apply) {
+    } else if (simd_apply && !partitioned) {  // (else each thread its nodes)
       pad_states(pp, nullptr, model.num_nodes());
     }
   }
@@ -1211,6 +1254,16 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
   } else if (simd_apply && T <= 1) {  // y = M p above
     kernel(0, model.num_links(), y.data());
     m_continuum.apply_implicit(pp, y.data(), p4);
+  } else if (partitioned) {  // (no continuum elements)
+    auto nodes = [&](Index begin, Index end) {
+      if constexpr (std::is_same_v<Scalar, double>)
+        if (simd_apply) {  // the p its links read
+          const std::ptrdiff_t b = begin;
+          detail::pad_rows4(pp + 3 * b, end - begin, m_x4.data() + 4 * b);
+        }
+      for (Index i = begin; i < end; ++i) init(i, y.data() + 3 * std::ptrdiff_t(i));
+    };
+    detail::scatter_links(*pool, m_partition, y.data(), nodes, kernel);
   } else {
     detail::scatter_links(pool, model.num_nodes(), model.num_links(), y.data(), m_scratch, init,
                           kernel);
