@@ -17,9 +17,8 @@ namespace fsm {
 namespace {
 
 template <typename Scalar>
-SphereModel<Scalar> jittered_block() {
-  auto mesh =
-      make_cube_lattice(Vector3<Scalar>::Zero().eval(), Eigen::Vector3i(4, 4, 4), Scalar(0.005));
+SphereModel<Scalar> jittered_block(const Eigen::Vector3i& cells = Eigen::Vector3i(4, 4, 4)) {
+  auto mesh = make_cube_lattice(Vector3<Scalar>::Zero().eval(), cells, Scalar(0.005));
   std::mt19937 rng(1);
   std::uniform_real_distribution<double> u(-1, 1);
   for (Index i = 0; i < mesh.vertices.rows(); ++i)
@@ -336,6 +335,21 @@ TEST(NoAllocation, TwoThreadsAfterWarmUp) {
   o.forces.threads = 2;
   Simulation<double> sim(jittered_block<double>(), o);
   EXPECT_EQ(allocations(sim, 0.5 * sim.stable_time_step(), 50), 0);
+}
+
+// The same on a block large enough that the two threads share the links by node (one dispatch,
+// no buffers: ForceModel::links_partitioned()), with Heun and the implicit step (link law).
+TEST(NoAllocation, TwoThreadsWithTheLinksPartitioned) {
+  if (detail::max_threads() < 2) GTEST_SKIP() << "a machine with one hardware thread";
+  for (const std::string name : {"heun", "implicit_euler"}) {
+    Simulation<double>::Options o;
+    o.integrator = name;
+    o.forces.threads = 2;
+    Simulation<double> sim(jittered_block<double>(Eigen::Vector3i(14, 12, 13)), o);
+    ASSERT_TRUE(sim.forces().links_partitioned()) << name;
+    const double dt = name == "heun" ? 0.5 * sim.stable_time_step() : 1e-3;
+    EXPECT_EQ(allocations(sim, dt, 20), 0) << name;
+  }
 }
 
 }  // namespace

@@ -76,12 +76,13 @@ TEST(WorkerPool, NoWakeUpIsLostWhenHelpersSleepBetweenJobs) {
 // (a descheduled or sleeping helper then costs no wait), and still exactly once. Helpers that
 // sleep after every job (no spin) are usually slower to wake than the caller's empty share, but
 // not always: where the scheduler runs a woken helper at once (a busy CI host ran 20 jobs with no
-// share on the caller), so jobs go on until one is seen, up to 2,000 (about half a second).
+// share on the caller), so after 20 jobs they go on until one is seen, up to 2,000 (about half a
+// second).
 TEST(WorkerPool, TheCallerRunsSharesNoHelperHasClaimed) {
   WorkerPool pool(3, std::chrono::microseconds(0));
   const std::thread::id caller = std::this_thread::get_id();
   int on_caller = 0;
-  for (int job = 0; job < 2000 && on_caller == 0; ++job) {
+  for (int job = 0; job < 20 || (job < 2000 && on_caller == 0); ++job) {
     // The helpers fall asleep (the first jobs wait longer, as the test always did).
     std::this_thread::sleep_for(std::chrono::microseconds(job < 20 ? 2000 : 200));
     std::atomic<int> runs[3] = {0, 0, 0};
@@ -147,7 +148,7 @@ void expect_partition(const detail::LinkPartition& p, const std::vector<Index>& 
 // partition would leave one thread every link).
 TEST(WorkerPool, LinkPartitionKeepsEachThreadsLinksOnItsNodes) {
   std::mt19937 rng(3);
-  for (const Eigen::Vector3i cells :
+  for (const Eigen::Vector3i& cells :
        {Eigen::Vector3i(1, 1, 1), Eigen::Vector3i(6, 5, 4), Eigen::Vector3i(20, 18, 16)}) {
     const TetrahedralMesh<double> mesh =
         make_cube_lattice(Vector3<double>::Zero().eval(), cells, 0.01);
@@ -183,6 +184,13 @@ TEST(WorkerPool, LinkPartitionKeepsEachThreadsLinksOnItsNodes) {
     }
     EXPECT_EQ(detail::partition_links(sorted.data(), L, n, 1, L).threads(), 0);
   }
+  // More threads than links: the spare threads own no link.
+  for (const std::vector<Index>& ij : {std::vector<Index>{0, 1}, std::vector<Index>{0, 1, 3, 4}})
+    for (int T = 2; T <= 5; ++T) {
+      SCOPED_TRACE(testing::Message() << ij.size() / 2 << " links, " << T << " threads");
+      const auto L = Index(ij.size() / 2);
+      expect_partition(detail::partition_links(ij.data(), L, 5, T, L), ij, 5, T);
+    }
 }
 
 // A jittered lattice block with random masses and velocities and the bilinear law, its bottom
@@ -239,7 +247,9 @@ TEST(WorkerPool, TwoThreadsPrepareTheImplicitSystemOfOne) {
 // with its nodes renumbered at random, with the per-thread buffers: both give one thread's forces,
 // right-hand side, diagonal, per-node blocks and products A p to rounding, with the SIMD kernels
 // (whose padded states each thread then makes for its own nodes) and the scalar loops, some nodes
-// fixed (links with both ends fixed are out of the ranges), drag and external forces.
+// fixed (links with both ends fixed are out of the ranges), drag and external forces; on the link
+// law and on the continuum law (its elements run after the links, on the states the threads
+// padded; its product keeps the buffers).
 TEST(WorkerPool, TwoThreadsEvaluateAndMultiplyLikeOneWithOrWithoutThePartition) {
   if (detail::max_threads() < 2) GTEST_SKIP() << "a machine with one hardware thread";
   std::mt19937 rng(5);
@@ -271,64 +281,75 @@ TEST(WorkerPool, TwoThreadsEvaluateAndMultiplyLikeOneWithOrWithoutThePartition) 
         model.velocities()(i, c) = 0.05 * u(rng);
       }
     }
-    for (const bool simd : {false, true}) {
-      SCOPED_TRACE(simd ? "SIMD" : "scalar");
-      Positions<double> f[2] = {Positions<double>(n, 3), Positions<double>(n, 3)};
-      Positions<double> y[2] = {Positions<double>(n, 3), Positions<double>(n, 3)};
-      Positions<double> rhs[2] = {Positions<double>(n, 3), Positions<double>(n, 3)};
-      Positions<double> diagonal[2] = {Positions<double>(n, 3), Positions<double>(n, 3)};
-      std::vector<double> node_blocks[2];
-      Positions<double> p(n, 3);
-      for (Index i = 0; i < n; ++i)
-        for (int c = 0; c < 3; ++c) p(i, c) = u(rng);
-      for (const int threads : {1, 2}) {
-        ForceModel<double>::Options o;
-        o.threads = threads;
-        o.simd = simd;
-        o.drag = 5;
-        ForceModel<double> forces(model, o);
-        forces.external_forces().row(n / 2) = Vector3<double>(0.1, -0.2, 0.3).transpose();
-        if (threads == 2) {
-          ASSERT_TRUE(forces.uses_pool());
-          EXPECT_EQ(forces.links_partitioned(), !renumbered);
-        }
-        f[threads - 1].setConstant(std::nan(""));
-        forces.evaluate(model, model.positions(), model.velocities(), f[threads - 1]);
-        std::vector<double> blocks(
-            std::size_t(ForceModel<double>::implicit_block_size * model.num_links()));
-        const std::size_t k = std::size_t(threads - 1);
-        rhs[k].setConstant(std::nan(""));
-        diagonal[k].setConstant(std::nan(""));
-        forces.prepare_implicit(model, 1e-3, JacobianForm::definite, blocks.data(), rhs[k],
-                                diagonal[k]);
-        node_blocks[k].assign(6 * std::size_t(n), std::nan(""));
-        forces.implicit_diagonal_blocks(model, blocks.data(), node_blocks[k].data());
-        y[threads - 1].setConstant(std::nan(""));
-        forces.apply_implicit(model, blocks.data(), p, y[threads - 1]);
-      }
-      ASSERT_TRUE(f[1].allFinite());
-      EXPECT_GT(f[0].cwiseAbs().maxCoeff(), 0.0);
-      EXPECT_LE((f[0] - f[1]).cwiseAbs().maxCoeff(), 1e-13 * f[0].cwiseAbs().maxCoeff());
-      ASSERT_TRUE(rhs[1].allFinite() && diagonal[1].allFinite());
-      EXPECT_LE((rhs[0] - rhs[1]).cwiseAbs().maxCoeff(), 1e-13 * rhs[0].cwiseAbs().maxCoeff());
-      EXPECT_LE((diagonal[0] - diagonal[1]).cwiseAbs().maxCoeff(),
-                1e-13 * diagonal[0].cwiseAbs().maxCoeff());
-      const Eigen::Map<const Eigen::ArrayXd> b1(node_blocks[0].data(), 6 * n);
-      const Eigen::Map<const Eigen::ArrayXd> b2(node_blocks[1].data(), 6 * n);
-      ASSERT_TRUE(b2.allFinite());
-      EXPECT_LE((b1 - b2).abs().maxCoeff(), 1e-13 * b1.abs().maxCoeff());
-      EXPECT_GT(b1.reshaped(6, n).bottomRows(3).abs().maxCoeff(), 0.0);  // the links' n n^T
-      ASSERT_TRUE(y[1].allFinite());
-      EXPECT_LE((y[0] - y[1]).cwiseAbs().maxCoeff(), 1e-13 * y[0].cwiseAbs().maxCoeff());
-      // The links' share of A p on the mobile nodes, beyond M (1 + h gamma) p: the comparison sees
-      // them (fixed nodes' rows are zero).
-      double links = 0;
-      for (Index i = 0; i < n; ++i)
-        if (!model.fixed()[i])
-          links = std::max(
-              links, (y[0].row(i) - 1.005 * model.masses()[i] * p.row(i)).cwiseAbs().maxCoeff());
-      EXPECT_GT(links, 1e-3 * y[0].cwiseAbs().maxCoeff());
+    if (!renumbered) {  // the band between the threads' nodes is there to be run
+      EXPECT_GT(detail::partition_links(model.links().data(), model.num_links(), n, 2,
+                                        model.num_links() / 8)
+                    .band_links,
+                0);
     }
+    for (const ForceLaw law : {ForceLaw::links, ForceLaw::continuum})
+      for (const bool simd : {false, true}) {
+        SCOPED_TRACE(simd ? "SIMD" : "scalar");
+        SCOPED_TRACE(law == ForceLaw::links ? "link law" : "continuum law");
+        model.set_region_law(0, law);
+        Positions<double> f[2] = {Positions<double>(n, 3), Positions<double>(n, 3)};
+        Positions<double> y[2] = {Positions<double>(n, 3), Positions<double>(n, 3)};
+        Positions<double> rhs[2] = {Positions<double>(n, 3), Positions<double>(n, 3)};
+        Positions<double> diagonal[2] = {Positions<double>(n, 3), Positions<double>(n, 3)};
+        std::vector<double> node_blocks[2];
+        Positions<double> p(n, 3);
+        for (Index i = 0; i < n; ++i)
+          for (int c = 0; c < 3; ++c) p(i, c) = u(rng);
+        for (const int threads : {1, 2}) {
+          ForceModel<double>::Options o;
+          o.threads = threads;
+          o.simd = simd;
+          o.drag = 5;
+          ForceModel<double> forces(model, o);
+          forces.external_forces().row(n / 2) = Vector3<double>(0.1, -0.2, 0.3).transpose();
+          if (threads == 2) {
+            ASSERT_TRUE(forces.uses_pool());
+            EXPECT_EQ(forces.links_partitioned(), !renumbered);
+          }
+          f[threads - 1].setConstant(std::nan(""));
+          forces.evaluate(model, model.positions(), model.velocities(), f[threads - 1]);
+          std::vector<double> blocks(
+              std::size_t(ForceModel<double>::implicit_block_size * model.num_links()));
+          const std::size_t k = std::size_t(threads - 1);
+          rhs[k].setConstant(std::nan(""));
+          diagonal[k].setConstant(std::nan(""));
+          forces.prepare_implicit(model, 1e-3, JacobianForm::definite, blocks.data(), rhs[k],
+                                  diagonal[k]);
+          node_blocks[k].assign(6 * std::size_t(n), std::nan(""));
+          forces.implicit_diagonal_blocks(model, blocks.data(), node_blocks[k].data());
+          y[threads - 1].setConstant(std::nan(""));
+          forces.apply_implicit(model, blocks.data(), p, y[threads - 1]);
+        }
+        ASSERT_TRUE(f[1].allFinite());
+        EXPECT_GT(f[0].cwiseAbs().maxCoeff(), 0.0);
+        EXPECT_LE((f[0] - f[1]).cwiseAbs().maxCoeff(), 1e-13 * f[0].cwiseAbs().maxCoeff());
+        ASSERT_TRUE(rhs[1].allFinite() && diagonal[1].allFinite());
+        EXPECT_LE((rhs[0] - rhs[1]).cwiseAbs().maxCoeff(), 1e-13 * rhs[0].cwiseAbs().maxCoeff());
+        EXPECT_LE((diagonal[0] - diagonal[1]).cwiseAbs().maxCoeff(),
+                  1e-13 * diagonal[0].cwiseAbs().maxCoeff());
+        const Eigen::Map<const Eigen::ArrayXd> b1(node_blocks[0].data(), 6 * n);
+        const Eigen::Map<const Eigen::ArrayXd> b2(node_blocks[1].data(), 6 * n);
+        ASSERT_TRUE(b2.allFinite());
+        EXPECT_LE((b1 - b2).abs().maxCoeff(), 1e-13 * b1.abs().maxCoeff());
+        if (law == ForceLaw::links) {  // the links' n n^T (a continuum region's links carry none)
+          EXPECT_GT(b1.reshaped(6, n).bottomRows(3).abs().maxCoeff(), 0.0);
+        }
+        ASSERT_TRUE(y[1].allFinite());
+        EXPECT_LE((y[0] - y[1]).cwiseAbs().maxCoeff(), 1e-13 * y[0].cwiseAbs().maxCoeff());
+        // The links' share of A p on the mobile nodes, beyond M (1 + h gamma) p: the comparison
+        // sees them (fixed nodes' rows are zero).
+        double links = 0;
+        for (Index i = 0; i < n; ++i)
+          if (!model.fixed()[i])
+            links = std::max(
+                links, (y[0].row(i) - 1.005 * model.masses()[i] * p.row(i)).cwiseAbs().maxCoeff());
+        EXPECT_GT(links, 1e-3 * y[0].cwiseAbs().maxCoeff());
+      }
   }
 }
 

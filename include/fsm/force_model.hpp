@@ -204,18 +204,20 @@ class ForceModel {
   void use_pool(bool on) noexcept { m_pool.set_enabled(on); }
   /// @brief Whether the loops run on a pool (Options::threads above 1 and not set aside).
   [[nodiscard]] bool uses_pool() const noexcept { return m_pool.get() != nullptr; }
-  /// @brief Whether evaluate() on the pool shares the links so that no two threads' links meet at
-  /// a node (one dispatch, no per-thread buffers): evaluate(), prepare_implicit(), and
+  /// @brief Whether the link loops on the pool share the links so that no two threads' links meet
+  /// at a node (one dispatch, no per-thread buffers): evaluate(), prepare_implicit(), and
   /// apply_implicit() when there are no continuum elements.
-  /// That takes links sorted by node over nodes numbered in space, as the lattice's and the
-  /// builder's edges are: the links between two threads' nodes (the band) then run on one thread,
-  /// and the partition is used while a thread's links plus the band are at most an eighth of the
-  /// links more than an even share. refresh() makes it for the pool's size; after set_options()
-  /// with another thread count it waits for the next refresh(). Otherwise each thread sums into
-  /// its own buffer.
+  /// That takes links sorted by node over nodes numbered in space, as a lattice's edges are (the
+  /// builder's parts are not: CGAL numbers their vertices in no spatial order). The links between
+  /// two threads' nodes (the band) then run on one thread, and the partition is used while a
+  /// thread's links plus the band are at most an eighth of the links more than an even share.
+  /// refresh() makes it for the pool's size and the model's; after set_options() with another
+  /// thread count it waits for the next refresh(). Otherwise each thread sums into its own buffer.
   [[nodiscard]] bool links_partitioned() const noexcept {
     const detail::WorkerPool* pool = m_pool.get();
-    return pool && m_partition.threads() == pool->size();
+    return pool && m_partition.threads() == pool->size() &&
+           m_partition.nodes.back() == m_num_nodes &&
+           m_partition.owned.back().second == Index(m_force_link.size());
   }
   /// @brief Changes the options (thread buffers are resized here, not in the step); fsm::Error
   /// for threads < 1 or non-finite gravity.
@@ -451,6 +453,8 @@ class ForceModel {
   // Copies x (and v, unless null) into m_x4 (m_v4), four per node, for the SIMD kernels. On a
   // large model it runs on the pool: never call it from a pool job.
   void pad_states(const Scalar* x, const Scalar* v, Index n) noexcept;
+  // The same for nodes [begin, end) on the calling thread (double only; nothing for float).
+  void pad_state_rows(const Scalar* x, const Scalar* v, Index begin, Index end) noexcept;
 
   void update_mobility(const SphereModel<Scalar>& model) noexcept;
   // Forgets the kept forces; their evaluation's flutter watch is undone (a state that started no

@@ -100,7 +100,8 @@ bool scatter_links(WorkerPool* pool, Index num_nodes, Index num_links, Scalar* o
 /// nodes [nodes[t], nodes[t+1]) and the links [owned[t].first, owned[t].second), whose ends all
 /// lie in them; the links between two threads' ranges, [owned[t].second, owned[t+1].first), are
 /// the band, and run after, on one thread. Links sorted by their lower end over nodes numbered
-/// in space (a lattice, the builder's edges) leave a band of about one layer of nodes' links.
+/// in space (a lattice's edges) leave a band of about one layer of nodes' links; the builder's
+/// parts, whose vertices CGAL numbers in no spatial order, leave a wide one (docs/benchmarks.md).
 struct LinkPartition {
   std::vector<Index> nodes;                    // T + 1 bounds: 0 = nodes[0] <= ... <= nodes[T]
   std::vector<std::pair<Index, Index>> owned;  // T link ranges, in order, covering with the bands
@@ -164,7 +165,11 @@ void scatter_links(WorkerPool& pool, const LinkPartition& p, Scalar* out, NodeWo
     nodes(p.nodes[k], p.nodes[k + 1]);
     kernel(p.owned[k].first, p.owned[k].second, out);
   };
-  pool.run(job);
+  if (T == pool.size()) {
+    pool.run(job);
+  } else {  // made for another pool: every share here, in order (the callers check the size)
+    for (int t = 0; t < T; ++t) job(t, T);
+  }
   for (std::size_t k = 0; k + 1 < std::size_t(T); ++k)
     if (p.owned[k].second < p.owned[k + 1].first)
       kernel(p.owned[k].second, p.owned[k + 1].first, out);

@@ -591,17 +591,24 @@ void ForceModel<Scalar>::pad_states(const Scalar* x, const Scalar* v, Index n) n
     if (detail::WorkerPool* pool = n >= kPoolNodes ? m_pool.get() : nullptr) {  // (2+ threads)
       auto pad = [&](int t, int T) {
         const auto [begin, end] = detail::share(n, t, T);
-        const std::ptrdiff_t b = begin;
-        detail::pad_rows4(x + 3 * b, end - begin, m_x4.data() + 4 * b);
-        if (v) detail::pad_rows4(v + 3 * b, end - begin, m_v4.data() + 4 * b);
+        pad_state_rows(x, v, begin, end);
       };
       pool->run(pad);
       return;
     }
-    detail::pad_rows4(x, n, m_x4.data());
-    if (v) detail::pad_rows4(v, n, m_v4.data());
+  }
+  pad_state_rows(x, v, 0, n);
+}
+
+template <typename Scalar>
+void ForceModel<Scalar>::pad_state_rows(const Scalar* x, const Scalar* v, Index begin,
+                                        Index end) noexcept {
+  if constexpr (std::is_same_v<Scalar, double>) {
+    const std::ptrdiff_t b = begin;
+    detail::pad_rows4(x + 3 * b, end - begin, m_x4.data() + 4 * b);
+    if (v) detail::pad_rows4(v + 3 * b, end - begin, m_v4.data() + 4 * b);
   } else {
-    (void)x, (void)v, (void)n;
+    (void)x, (void)v, (void)begin, (void)end;
   }
 }
 
@@ -686,12 +693,7 @@ void ForceModel<Scalar>::evaluate(const SphereModel<Scalar>& model, const ConstP
   };
   if (partitioned) {
     auto nodes = [&](Index begin, Index end) {
-      if constexpr (std::is_same_v<Scalar, double>)
-        if (simd_kernel) {  // the states its links read
-          const std::ptrdiff_t b = begin;
-          detail::pad_rows4(xp + 3 * b, end - begin, m_x4.data() + 4 * b);
-          detail::pad_rows4(vp + 3 * b, end - begin, m_v4.data() + 4 * b);
-        }
+      if (simd_kernel) pad_state_rows(xp, vp, begin, end);  // the states its links read
       for (Index i = begin; i < end; ++i) init(i, f.data() + 3 * std::ptrdiff_t(i));
     };
     detail::scatter_links(*pool, m_partition, f.data(), nodes, kernel);
@@ -960,12 +962,7 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
       // Each thread its nodes (the states its links read, the rhs and the mass blocks), then its
       // links' blocks, rhs and per-node blocks straight into the outputs; then the bands.
       auto nodes = [&](Index begin, Index end) {
-        if constexpr (std::is_same_v<Scalar, double>)
-          if (simd_prepare) {
-            const std::ptrdiff_t b = begin;
-            detail::pad_rows4(x + 3 * b, end - begin, m_x4.data() + 4 * b);
-            detail::pad_rows4(v + 3 * b, end - begin, m_v4.data() + 4 * b);
-          }
+        if (simd_prepare) pad_state_rows(x, v, begin, end);
         for (Index i = begin; i < end; ++i) init(i, rhs.data() + 3 * std::ptrdiff_t(i));
         init_link_node_blocks(model, h, begin, end, 0);
       };
@@ -1256,11 +1253,7 @@ void ForceModel<Scalar>::apply_implicit(const SphereModel<Scalar>& model, const 
     m_continuum.apply_implicit(pp, y.data(), p4);
   } else if (partitioned) {  // (no continuum elements)
     auto nodes = [&](Index begin, Index end) {
-      if constexpr (std::is_same_v<Scalar, double>)
-        if (simd_apply) {  // the p its links read
-          const std::ptrdiff_t b = begin;
-          detail::pad_rows4(pp + 3 * b, end - begin, m_x4.data() + 4 * b);
-        }
+      if (simd_apply) pad_state_rows(pp, nullptr, begin, end);  // the p its links read
       for (Index i = begin; i < end; ++i) init(i, y.data() + 3 * std::ptrdiff_t(i));
     };
     detail::scatter_links(*pool, m_partition, y.data(), nodes, kernel);
