@@ -16,6 +16,9 @@
 # Environment: FSM_BUILD_DIR (default build), FSM_BUILD_TYPE (default Release), FSM_JOBS.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
+# ccache sees paths inside the checkout as relative ones, so a copy of the sources (the pip test's)
+# that keeps the same layout reuses the objects compiled here.
+export CCACHE_BASEDIR="$PWD"
 
 # Every dependency is a Debian package (no network besides Debian's archive).
 PACKAGES=(
@@ -87,17 +90,30 @@ UNIT_TESTS=(test_voigt_link test_material test_sphere_model test_tetrahedral_mes
   touch/test_touch_device)
 THREAD_TESTS=(test_servo_loop test_haptic_device test_simulation test_worker_pool
   touch/test_touch_device)
+# Skipped under the sanitizers (they run in the Release ctest above): the four resolution sweeps,
+# which refine a block or a bar to fine spacing to check that a result converges. Their code paths
+# are those of the smaller cases of the same suites, which do run instrumented; at -O1 under ASan
+# they took 54-177 s each, 470 s of the 530 s of the ASan stage (measured 2026-11-28).
+SANITIZER_SKIP="ContactSolver.BallForceConvergesAsTheSpacingShrinks"
+SANITIZER_SKIP+=":ContactSolver.FaceContactHoldsUnderAFlatEndAtFineSpacing"
+SANITIZER_SKIP+=":Continuum.SqueezedBlockCarriesEAStrainAtEveryResolution"
+SANITIZER_SKIP+=":Simulation.GravityHangingBarReachesTheStaticElongation"
 run_tests() {  # run_tests DIR PROGRAM...: each test program, stopping at the first failure
   local dir=$1 t
   shift
   for t in "$@"; do
     echo "tools/dev.sh: $dir: $t" >&2
-    "$dir/tests/$t" --gtest_brief=1 || return 1
+    "$dir/tests/$t" --gtest_brief=1 "--gtest_filter=-$SANITIZER_SKIP" || return 1
   done
 }
 sanitize() {
   local dir=${BUILD_DIR}-asan
-  build_in "$dir" "-O1 -g1 -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined" \
+  # UBSan without the checks that tripled GCC's compile time on the Eigen-heavy files (119 s against
+  # 44 s for force_model.cpp): a null or out-of-object access is reported by ASan itself, and the
+  # fuzz build (clang) runs the file readers under every UBSan check, alignment included.
+  local ub_off=null,pointer-overflow,alignment,object-size,vptr,nonnull-attribute
+  ub_off+=,returns-nonnull-attribute
+  build_in "$dir" "-O1 -g1 -fsanitize=address,undefined -fno-sanitize=$ub_off -fno-omit-frame-pointer -fno-sanitize-recover=undefined" \
     "" "${UNIT_TESTS[@]##*/}"
   ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
     run_tests "$dir" "${UNIT_TESTS[@]}"
@@ -105,7 +121,7 @@ sanitize() {
   build_in "$dir" "-O1 -g1 -fsanitize=thread" "" "${THREAD_TESTS[@]##*/}"
   # setarch -R: GCC 12's TSan cannot map its shadow memory under the kernel's full ASLR.
   TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1 \
-    setarch "$(uname -m)" -R bash -c "$(declare -f run_tests); run_tests \"\$@\"" _ \
+    setarch "$(uname -m)" -R bash -c "$(declare -p SANITIZER_SKIP); $(declare -f run_tests); run_tests \"\$@\"" _ \
     "$dir" "${THREAD_TESTS[@]}"
 }
 

@@ -10,6 +10,10 @@ mkdir -p "$work"
 # A copy of the sources, so setuptools' scratch files never land in the checkout.
 mkdir -p "$work/src"
 tar -C "$src" --exclude="./build*" --exclude=./.git --exclude=./.venv -cf - . | tar -C "$work/src" -xf -
+# One CMake tree for both distributions, where the checkout keeps its own (build/): with
+# CCACHE_BASEDIR at the checkout (tools/dev.sh sets it), the compiler's arguments then read the same
+# as in the checkout's build and ccache reuses its objects instead of compiling everything again.
+export FSM_CMAKE_BUILD_DIR="$work/src/build"
 "$work/venv/bin/pip" install --no-build-isolation --no-index --quiet "$work/src"
 cd "$work"  # not where a build tree's fsm/ could shadow the installed one
 # The runtime wheel is BSD and holds no GPL code: no builder extension, and fsm.build says where
