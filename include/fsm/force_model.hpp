@@ -207,8 +207,9 @@ class ForceModel {
   /// @brief Whether the link loops on the pool share the links so that no two threads' links meet
   /// at a node (one dispatch, no per-thread buffers): evaluate(), prepare_implicit(), and
   /// apply_implicit() when there are no continuum elements.
-  /// That takes links sorted by node over nodes numbered in space, as a lattice's edges are (the
-  /// builder's parts are not: CGAL numbers their vertices in no spatial order). The links between
+  /// That takes links sorted by node over nodes numbered so that every link is short, as a
+  /// lattice's edges are (the builder's parts are not: their Morton order's jumps make some links
+  /// span most of a part, and the attachment links come last). The links between
   /// two threads' nodes (the band) then run on one thread, and the partition is used while a
   /// thread's links plus the band are at most an eighth of the links more than an even share.
   /// refresh() makes it for the pool's size and the model's; after set_options() with another

@@ -101,7 +101,8 @@ bool scatter_links(WorkerPool* pool, Index num_nodes, Index num_links, Scalar* o
 /// lie in them; the links between two threads' ranges, [owned[t].second, owned[t+1].first), are
 /// the band, and run after, on one thread. Links sorted by their lower end over nodes numbered
 /// in space (a lattice's edges) leave a band of about one layer of nodes' links; the builder's
-/// parts, whose vertices CGAL numbers in no spatial order, leave a wide one (docs/benchmarks.md).
+/// parts, numbered along a Morton curve whose jumps make some links span most of a part, and its
+/// attachment links, listed last, leave a wide one (docs/benchmarks.md).
 struct LinkPartition {
   std::vector<Index> nodes;                    // T + 1 bounds: 0 = nodes[0] <= ... <= nodes[T]
   std::vector<std::pair<Index, Index>> owned;  // T link ranges, in order, covering with the bands

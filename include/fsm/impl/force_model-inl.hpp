@@ -873,6 +873,7 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
   } else {
     // rhs = h F + h^2 K v, and the per-link blocks B = h D + h^2 K = a n n^T + b I.
     const Scalar drag = m_options.drag;
+    const bool partitioned = links_partitioned();  // (as in evaluate())
     auto init = [&](Index i, Scalar* out) {
       const std::ptrdiff_t k = 3 * std::ptrdiff_t(i);
       for (int c = 0; c < 3; ++c) out[c] = h * (mass[i] * (g[c] - drag * v[k + c]) + ext[k + c]);
@@ -885,7 +886,7 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
                                                          dm == DampingModel::along_link);
       if (simd_prepare) {
         simd_links = {L.ij, L.rest, L.ks, L.kd, L.kl, L.es};
-        if (!links_partitioned()) pad_states(x, v, model.num_nodes());  // (else each thread)
+        if (!partitioned) pad_states(x, v, model.num_nodes());  // (else each thread its nodes)
       }
     }
     auto kernel = [&](Index begin, Index end, Scalar* out) {
@@ -958,7 +959,7 @@ void ForceModel<Scalar>::prepare_implicit(const SphereModel<Scalar>& model, Scal
       init_link_node_blocks(model, h, begin, end, T);
       copy_diagonal(begin, end);
     };
-    if (links_partitioned()) {
+    if (partitioned) {
       // Each thread its nodes (the states its links read, the rhs and the mass blocks), then its
       // links' blocks, rhs and per-node blocks straight into the outputs; then the bands.
       auto nodes = [&](Index begin, Index end) {
