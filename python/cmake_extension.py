@@ -34,10 +34,11 @@ class CMakeExtension(Extension):
 class CMakeBuild(build_ext):
     def build_extension(self, ext):
         package_dir = Path(self.get_ext_fullpath(ext.name)).parent.resolve()
-        # FSM_CMAKE_BUILD_DIR: a CMake build tree to configure and keep (both distributions may share
-        # one, so the builder's reuses the runtime's objects); by default setuptools' scratch folder.
-        build_dir = Path(os.environ.get("FSM_CMAKE_BUILD_DIR")
-                         or Path(self.build_temp) / "cmake").resolve()
+        # FSM_CMAKE_BUILD_DIR: a CMake build tree of its own to configure and keep (both
+        # distributions may share one, so the builder's reuses the runtime's objects; a relative
+        # path is taken from the repository's root); by default setuptools' scratch folder.
+        named = os.environ.get("FSM_CMAKE_BUILD_DIR")
+        build_dir = (ROOT / named if named else Path(self.build_temp) / "cmake").resolve()
         configure = [
             "cmake", "-S", str(ROOT), "-B", str(build_dir),
             "-DCMAKE_BUILD_TYPE=Release",
