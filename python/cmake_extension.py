@@ -20,6 +20,13 @@ def version():
                      (ROOT / "CMakeLists.txt").read_text()).group(1)
 
 
+def cmake_build_dir(build_temp, named=None):
+    """The CMake tree to configure and keep: `named` (FSM_CMAKE_BUILD_DIR; a tree of its own, which
+    both distributions may share so the builder's reuses the runtime's objects; relative to the
+    repository's root) or, by default, setuptools' scratch folder `build_temp`/cmake."""
+    return (ROOT / named if named else Path(build_temp) / "cmake").resolve()
+
+
 class CMakeExtension(Extension):
     """An extension that CMake builds: `target` is its CMake target, `package_dir_var` the cache
     variable that says where CMake puts it, `builder` whether the GPL builder is configured."""
@@ -34,11 +41,7 @@ class CMakeExtension(Extension):
 class CMakeBuild(build_ext):
     def build_extension(self, ext):
         package_dir = Path(self.get_ext_fullpath(ext.name)).parent.resolve()
-        # FSM_CMAKE_BUILD_DIR: a CMake build tree of its own to configure and keep (both
-        # distributions may share one, so the builder's reuses the runtime's objects; a relative
-        # path is taken from the repository's root); by default setuptools' scratch folder.
-        named = os.environ.get("FSM_CMAKE_BUILD_DIR")
-        build_dir = (ROOT / named if named else Path(self.build_temp) / "cmake").resolve()
+        build_dir = cmake_build_dir(self.build_temp, os.environ.get("FSM_CMAKE_BUILD_DIR"))
         configure = [
             "cmake", "-S", str(ROOT), "-B", str(build_dir),
             "-DCMAKE_BUILD_TYPE=Release",
