@@ -7,15 +7,20 @@
 // bundled uterus, the VHF left adnexa, a pelvis-sized model: docs/benchmarks.md).
 //
 //   bench_model_step MODEL.fsm [--law links|continuum] [--threads N] [--tolerance TOL]
-//                    [--steps N] [--no-probe] [--continuum-part NAME]
-//                    [--element-tangent-quality Q] [--smoothing element|face|edge|node]
-//                    [--gravity-y] [--no-simd] [--detection-margin F] [--adaptive-threads]
-//                    [--nu NU] [--json] [--preconditioners]
+//                    [--velocity-tolerance M_PER_S] [--steps N] [--no-probe]
+//                    [--continuum-part NAME] [--element-tangent-quality Q]
+//                    [--smoothing element|face|edge|node] [--gravity-y] [--no-simd]
+//                    [--detection-margin F] [--adaptive-threads] [--nu NU] [--json]
+//                    [--preconditioners] [--trace FILE]
 // --gravity-y: gravity along -y (the Visible Human data set's down) instead of -z.
 // --no-simd: the scalar link loops (ForceModel::Options::simd = false).
 // --detection-margin: collision::ContactOptions::detection_margin (0: penetrating spheres only).
 // --adaptive-threads: Simulation::Options::adaptive_threads (the pool only while it is faster);
 // the JSON's "pool_share" is the share of the timed steps that ran on the pool.
+// --velocity-tolerance: ImplicitEulerIntegrator::Options::velocity_tolerance (0: the relative test
+// alone).
+// --trace FILE: one CSV line per timed step: its time (us), CG iterations, kinetic energy (J) and
+// the number of contacts.
 // --nu: every region's Poisson's ratio (the continuum law's; the JSON's "nu" is region 0's).
 // --preconditioners: the step's matrix (contacts in) at the end of the timed steps ("held") and
 // 110 ms after the probe was pressed in ("pressing"), with factors of the same 10 and 100 steps
@@ -29,6 +34,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -43,9 +49,10 @@
 using namespace fsm;
 
 int main(int argc, char** argv) {
-  std::string path, law = "links", only, smoothing = "element";
+  std::string path, law = "links", only, smoothing = "element", trace_path;
   int threads = 1, steps = 2000;
   double tolerance = 1e-3;
+  double velocity_tolerance = ImplicitEulerIntegrator<double>::Options{}.velocity_tolerance;
   double element_tangent_quality = ForceModel<double>::Options{}.element_tangent_quality;
   double detection_margin = collision::ContactOptions<double>{}.detection_margin;
   std::optional<double> nu;  // unset: each region's own Poisson's ratio
@@ -66,6 +73,8 @@ int main(int argc, char** argv) {
       threads = std::atoi(value().c_str());
     else if (a == "--tolerance")
       tolerance = std::atof(value().c_str());
+    else if (a == "--velocity-tolerance")
+      velocity_tolerance = std::atof(value().c_str());
     else if (a == "--steps")
       steps = std::atoi(value().c_str());
     else if (a == "--continuum-part")
@@ -96,16 +105,20 @@ int main(int argc, char** argv) {
       preconditioners = true;
     else if (a == "--json")
       json = true;
+    else if (a == "--trace")
+      trace_path = value();
     else if (!a.empty() && a[0] != '-' && path.empty())
       path = a;
     else {
       std::fprintf(
           stderr,
           "usage: %s MODEL.fsm [--law links|continuum] [--threads N] [--tolerance TOL] "
+          "[--velocity-tolerance M_PER_S] "
           "[--steps N] [--no-probe] [--continuum-part NAME] "
           "[--element-tangent-quality Q] [--smoothing element|face|edge|node] [--gravity-y] "
           "[--no-simd] [--no-flutter-guard] [--no-extrapolation] [--no-reuse-end-forces] "
-          "[--detection-margin F] [--adaptive-threads] [--nu NU] [--json] [--preconditioners]\n",
+          "[--detection-margin F] [--adaptive-threads] [--nu NU] [--json] [--preconditioners] "
+          "[--trace FILE]\n",
           argv[0]);
       return 2;
     }
@@ -154,6 +167,7 @@ int main(int argc, char** argv) {
     Simulation<double> sim(std::move(spheres), so);
     ImplicitEulerIntegrator<double>::Options io;
     io.tolerance = tolerance;
+    io.velocity_tolerance = velocity_tolerance;
     io.extrapolate_warm_start = extrapolate;
     sim.set_integrator(std::make_unique<ImplicitEulerIntegrator<double>>(io));
     Eigen::SparseMatrix<double> A_rest;  // the step's matrix at rest, no contacts
@@ -192,6 +206,16 @@ int main(int argc, char** argv) {
     diverged_before = diverged;  // while sagging and pressing
     diverged = recovered = 0;    // count the timed steps only
     std::vector<double> t(std::size_t(steps), 0.0);
+    // --trace: one CSV line per timed step (its time, CG iterations, kinetic energy, contacts).
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> trace(nullptr, &std::fclose);
+    if (!trace_path.empty()) {
+      trace.reset(std::fopen(trace_path.c_str(), "w"));
+      if (!trace) {
+        std::fprintf(stderr, "bench_model_step: cannot write %s\n", trace_path.c_str());
+        return 1;
+      }
+      std::fprintf(trace.get(), "step,us,cg_iterations,kinetic_energy_J,contacts\n");
+    }
     long iterations = 0, on_pool = 0, unconverged = 0;
     Index probe_contacts = 0;
     // --preconditioners: the step's matrix 10 and 100 steps before the end, contacts in.
@@ -206,6 +230,11 @@ int main(int argc, char** argv) {
           std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       iterations += r.solver_iterations;
       unconverged += r.unconverged_solves;
+      if (trace)
+        std::fprintf(trace.get(), "%d,%.2f,%d,%.6g,%d\n", s, t[std::size_t(s)] * 1e6,
+                     r.solver_iterations,
+                     sim.forces().kinetic_energy(sim.model(), sim.model().velocities()),
+                     int(contacts.num_contacts()));
     }
     for (Index k = 0; k < contacts.num_contacts(); ++k)
       if (contacts.contacts()[k].instrument >= 0) ++probe_contacts;

@@ -15,6 +15,7 @@ std::unique_ptr<Integrator<Scalar>> make(const std::string& name, double cg_tole
   if (name == "implicit_euler" && cg_tolerance > 0) {
     typename ImplicitEulerIntegrator<Scalar>::Options o;
     o.tolerance = Scalar(cg_tolerance);
+    o.velocity_tolerance = 0;  // solved to that tolerance, however small the motion
     o.max_iterations = 2000;
     return std::make_unique<ImplicitEulerIntegrator<Scalar>>(o);
   }
@@ -451,6 +452,7 @@ TEST(Integrators, ImplicitSolversAgree) {
     o.solver = solver;
     o.jacobian = form;
     o.tolerance = 1e-13;
+    o.velocity_tolerance = 0;  // the exact solve, not one to 1e-9 m/s
     o.max_iterations = 5000;
     IE ie(o);
     ie.prepare(model);
@@ -512,6 +514,84 @@ TEST(Integrators, ExtrapolatedWarmStartSavesIterationsNotAccuracy) {
       it_plain, it_extrapolated, sag * 1e3, (x_plain - x_extrapolated).cwiseAbs().maxCoeff() * 1e3);
   // Steps of alternating length: never extrapolated, so the same iterations as without.
   EXPECT_EQ(run(true, true).second, run(false, true).second);
+}
+
+// Options::velocity_tolerance: a block settling under gravity (drag 40/s, so its motion dies away
+// in half a second) until its kinetic energy is at the round-off of its forces. The relative test
+// alone then chases that round-off; the floor stops CG as soon as the velocity change is solved to
+// about 1e-9 m/s. Both runs take the same iterations while the block moves and end at the same
+// positions to far below a micrometre; at rest the floor's run takes at most a third of the other's
+// iterations. A step from rest with a floor far above its motion takes no iteration at all, and one
+// with a floor below it solves as without one.
+TEST(Integrators, VelocityFloorStopsChasingRoundOffAtRest) {
+  using IE = ImplicitEulerIntegrator<double>;
+  struct Run {
+    Positions<double> x;
+    long moving{0}, resting{0};  // CG iterations in the first 100 steps, the last 400
+    double kinetic{0};           // at the end (J)
+  };
+  auto settle = [](double velocity_tolerance) {
+    SphereModel<double> model = block<double>({4, 3, 3}, 0.005, tissue<double>());
+    for (Index i = 0; i < model.num_nodes(); ++i)
+      if (model.rest_positions()(i, 2) < 1e-9) model.set_fixed(i);
+    ForceModel<double>::Options fo;
+    fo.drag = 40;
+    ForceModel<double> forces(model, fo);  // gravity along -z
+    IE::Options o;
+    o.tolerance = 1e-3;  // as the servo loop's step
+    o.velocity_tolerance = velocity_tolerance;
+    IE ie(o);
+    ie.prepare(model);
+    Run run;
+    const int steps = 2400;
+    for (int s = 0; s < steps; ++s) {
+      const IntegratorResult r = ie.step(model, forces, 1e-3);
+      EXPECT_TRUE(r.ok && r.converged);
+      if (s < 100) run.moving += r.iterations;
+      if (s >= steps - 400) run.resting += r.iterations;
+    }
+    run.x = model.positions();
+    run.kinetic = forces.kinetic_energy(model, model.velocities());
+    return run;
+  };
+  const Run plain = settle(0), floored = settle(IE::Options{}.velocity_tolerance);
+  std::printf(
+      "CG iterations, first 100 steps: %ld relative test alone, %ld with the floor; last 400 "
+      "(at rest): %ld and %ld; kinetic energy at the end %.3g and %.3g J; positions differ by "
+      "%.3g nm\n",
+      plain.moving, floored.moving, plain.resting, floored.resting, plain.kinetic, floored.kinetic,
+      (plain.x - floored.x).cwiseAbs().maxCoeff() * 1e9);
+  EXPECT_EQ(floored.moving, plain.moving);
+  EXPECT_LT(plain.kinetic, 1e-25);  // the block is at rest: its motion is round-off
+  EXPECT_LT(floored.kinetic, 1e-15);
+  EXPECT_LE(3 * floored.resting, plain.resting);
+  EXPECT_LT((plain.x - floored.x).cwiseAbs().maxCoeff(), 1e-9);
+
+  // One step from rest with a velocity floor far above the step's motion (gravity's h g = 1e-2
+  // m/s against 1 m/s): CG stops at the warm start (zero), no iteration; with a floor far below
+  // it, the same velocity change as without one.
+  auto first_step = [](double velocity_tolerance) {
+    SphereModel<double> model = block<double>({4, 3, 3}, 0.005, tissue<double>());
+    for (Index i = 0; i < model.num_nodes(); ++i)
+      if (model.rest_positions()(i, 2) < 1e-9) model.set_fixed(i);
+    ForceModel<double> forces(model);
+    IE::Options o;
+    o.tolerance = 1e-8;
+    o.velocity_tolerance = velocity_tolerance;
+    IE ie(o);
+    ie.prepare(model);
+    const IntegratorResult r = ie.step(model, forces, 1e-3);
+    EXPECT_TRUE(r.ok);
+    return std::pair{r.iterations, Positions<double>(model.velocities())};
+  };
+  const auto [it_high, v_high] = first_step(1.0);
+  const auto [it_low, v_low] = first_step(1e-12);
+  const auto [it_none, v_none] = first_step(0);
+  EXPECT_EQ(it_high, 0);
+  EXPECT_EQ(v_high.cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_GT(it_none, 0);
+  EXPECT_EQ(it_low, it_none);
+  EXPECT_EQ((v_low - v_none).cwiseAbs().maxCoeff(), 0.0);
 }
 
 // CG's stopping test weighs the residual by the preconditioner (Options::tolerance), which makes

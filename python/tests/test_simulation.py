@@ -48,6 +48,11 @@ def test_integrators_by_name_and_by_class(block):
         fsm.Simulation(block, damping="viscous")
     with pytest.raises(fsm.Error, match="preconditioner 'ilu'"):
         fsm.ImplicitEulerIntegrator(preconditioner="ilu")
+    assert fsm.ImplicitEulerIntegrator().velocity_tolerance == 1e-9
+    assert fsm.ImplicitEulerIntegrator(velocity_tolerance=0).velocity_tolerance == 0
+    for bad in (-1e-9, float("nan"), float("inf")):
+        with pytest.raises(fsm.Error, match="velocity_tolerance"):
+            fsm.ImplicitEulerIntegrator(velocity_tolerance=bad)
 
 
 def test_a_solve_cut_off_at_its_cap_is_reported(block):
@@ -165,15 +170,22 @@ def test_run_releases_the_gil(block):
     t = threading.Thread(target=count)
     t.start()
     try:
-        start = time.perf_counter()
-        assert sim.run(3000, 1e-3) == 3000
-        end = time.perf_counter()
+        # One run() long enough for the thread to be scheduled many times (at least 0.05 s):
+        # more steps while the machine takes less (a block at rest steps in a few us).
+        steps = 3000
+        while True:
+            start = time.perf_counter()
+            assert sim.run(steps, 1e-3) == steps
+            end = time.perf_counter()
+            if end - start > 0.05 or steps > 10**6:
+                break
+            steps *= 4
     finally:
         stop.set()
         t.join()
     margin = 0.1 * (end - start)
     inside = [x for x in ticks if start + margin < x < end - margin]
-    assert end - start > 0.05  # long enough for the thread to be scheduled many times
+    assert end - start > 0.05
     assert len(inside) > 100
 
 

@@ -158,6 +158,18 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg(SphereModel<Scalar>& 
   m_previous_dt = m_last_dt > Scalar(0) ? dt : Scalar(0);
   for (const Index i : forces.immobile_nodes()) m_dv.row(i).setZero();
   if (!detail::all_finite(m_dv.data(), m_dv.size())) m_dv.setZero();
+  {  // the velocity floor over the nodes that move
+    const auto mass = model.masses();
+    Scalar sum = mass.sum(), sum2 = mass.squaredNorm();
+    for (const Index i : forces.immobile_nodes()) {
+      sum -= mass[i];
+      sum2 -= mass[i] * mass[i];
+    }
+    const Scalar vt =
+        m_options.velocity_tolerance > 0 ? m_options.velocity_tolerance : 0;  // NaN: 0
+    m_floor2 = vt * vt * std::max(sum, Scalar(0));
+    m_plain_floor = vt * std::sqrt(std::max(sum2, Scalar(0)));
+  }
 
   m_simd = {};
   if constexpr (std::is_same_v<Scalar, double>) {
@@ -204,11 +216,12 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg_pass(
   // (docs/physics.md). A preconditioner that is not positive definite (the symmetric Jacobian
   // form's compressed links can make a diagonal negative) falls back to the plain test wherever
   // r^T P^-1 r is not positive.
-  const Scalar plain_target = m_options.tolerance * bnorm;
+  const Scalar plain_target = std::max(m_options.tolerance * bnorm, m_plain_floor);
   m_r = m_rhs;
   const Scalar bz = precondition_dot();
   const bool weighted = bz > Scalar(0) && std::isfinite(bz);
-  const Scalar target2 = weighted ? m_options.tolerance * m_options.tolerance * bz : Scalar(0);
+  const Scalar target2 =
+      weighted ? std::max(m_options.tolerance * m_options.tolerance * bz, m_floor2) : Scalar(0);
   forces.apply_implicit(model, m_blocks.data(), m_dv, m_q);
   m_r = m_rhs - m_q;
   Scalar rz = precondition_dot();
