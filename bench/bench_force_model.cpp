@@ -39,6 +39,30 @@ void sizes(benchmark::internal::Benchmark* b) {
 BENCHMARK_TEMPLATE(BM_ForceEvaluation, double)->Apply(sizes);
 BENCHMARK_TEMPLATE(BM_ForceEvaluation, float)->Apply(sizes);
 
+// The implicit step's product y = A p (ForceModel::apply_implicit, the link law's blocks prepared
+// at the model's state, h = 1 ms): what each CG iteration costs beyond its vector work. The
+// uterus-sized model (cells 0) and lattices; one thread.
+void BM_ImplicitProduct(benchmark::State& state) {
+  const int cells = int(state.range(0));
+  const SphereModel<double> model =
+      cells == 0 ? uterus_sized_model<double>() : lattice_model<double>(cells);
+  ForceModel<double> forces(model);
+  std::vector<double> blocks(std::size_t(ForceModel<double>::implicit_block_size) *
+                             std::size_t(model.num_links()));
+  Positions<double> rhs(model.num_nodes(), 3), diagonal(model.num_nodes(), 3),
+      p(model.num_nodes(), 3), y(model.num_nodes(), 3);
+  forces.prepare_implicit(model, 1e-3, JacobianForm::definite, blocks.data(), rhs, diagonal);
+  p = model.velocities();
+  for (auto _ : state) {
+    forces.apply_implicit(model, blocks.data(), p, y);
+    benchmark::DoNotOptimize(y.data());
+    benchmark::ClobberMemory();
+  }
+  state.counters["links"] = double(model.num_links());
+  per_link(state, double(model.num_links()));
+}
+BENCHMARK(BM_ImplicitProduct)->Arg(0)->Arg(11)->Arg(51)->ArgName("cells")->UseRealTime();
+
 // Elastic energy pass (what the divergence check adds per step).
 void BM_ElasticEnergy(benchmark::State& state) {
   const SphereModel<double> model = lattice_model<double>(int(state.range(0)));

@@ -123,7 +123,7 @@ def scale_chart():
         name = "continuum" if law == "1" else "links (the paper's)"
         ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="x", alpha=0.6, linestyle=":",
                 color="tab:purple" if law == "1" else "tab:green",
-                label=f"{name}, 1 thread, no extrapolated warm start (2026-11-26)")
+                label=f"{name}, 1 thread, no extrapolated warm start")
     for (law, threads), pts in sorted(series.items()):
         pts.sort()
         name = "continuum" if law == "1" else "links (the paper's)"
