@@ -19,8 +19,8 @@
 // the JSON's "pool_share" is the share of the timed steps that ran on the pool.
 // --velocity-tolerance: ImplicitEulerIntegrator::Options::velocity_tolerance (0: the relative test
 // alone).
-// --trace FILE: one CSV line per timed step: its time (us), CG iterations, kinetic energy (J) and
-// the number of contacts.
+// --trace FILE: a CSV file, a header row then one line per timed step: its index from 0, its time
+// (us), CG iterations, kinetic energy (J) at its end and the number of contacts.
 // --nu: every region's Poisson's ratio (the continuum law's; the JSON's "nu" is region 0's).
 // --preconditioners: the step's matrix (contacts in) at the end of the timed steps ("held") and
 // 110 ms after the probe was pressed in ("pressing"), with factors of the same 10 and 100 steps
@@ -73,9 +73,13 @@ int main(int argc, char** argv) {
       threads = std::atoi(value().c_str());
     else if (a == "--tolerance")
       tolerance = std::atof(value().c_str());
-    else if (a == "--velocity-tolerance")
+    else if (a == "--velocity-tolerance") {
       velocity_tolerance = std::atof(value().c_str());
-    else if (a == "--steps")
+      if (!(velocity_tolerance >= 0)) {
+        std::fprintf(stderr, "bench_model_step: --velocity-tolerance must be >= 0\n");
+        return 2;
+      }
+    } else if (a == "--steps")
       steps = std::atoi(value().c_str());
     else if (a == "--continuum-part")
       only = value();
@@ -251,7 +255,8 @@ int main(int argc, char** argv) {
     if (json)
       std::printf(
           "{\"model\": \"%s\", \"spheres\": %d, \"links\": %d, \"tetrahedra\": %d, "
-          "\"law\": \"%s\", \"threads\": %d, \"tolerance\": %g, \"probe\": %s, "
+          "\"law\": \"%s\", \"threads\": %d, \"tolerance\": %g, \"velocity_tolerance\": %g, "
+          "\"probe\": %s, "
           "\"probe_contacts\": %d, \"contacts\": %d, \"steps\": %d, \"mean_us\": %.1f, "
           "\"p50_us\": %.1f, \"p99_us\": %.1f, \"max_us\": %.1f, \"cg_iterations\": %.2f, "
           "\"unconverged_solves\": %ld, "
@@ -261,7 +266,7 @@ int main(int argc, char** argv) {
           "\"gravity\": \"%s\", \"smoothing\": \"%s\", \"adaptive_threads\": %s, "
           "\"pool_share\": %.3f, \"links_partitioned\": %s, \"nu\": %g}\n",
           path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
-          int(sim.model().num_tetrahedra()), law.c_str(), threads, tolerance,
+          int(sim.model().num_tetrahedra()), law.c_str(), threads, tolerance, velocity_tolerance,
           probe ? "true" : "false", int(probe_contacts), int(contacts.num_contacts()), steps,
           mean * 1e6, pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it, unconverged, recovered,
           diverged, diverged_before, element_tangent_quality,

@@ -520,7 +520,7 @@ TEST(Integrators, ExtrapolatedWarmStartSavesIterationsNotAccuracy) {
 // in half a second) until its kinetic energy is at the round-off of its forces. The relative test
 // alone then chases that round-off; the floor stops CG as soon as the velocity change is solved to
 // about 1e-9 m/s. Both runs take the same iterations while the block moves and end at the same
-// positions to far below a micrometre; at rest the floor's run takes at most a third of the other's
+// positions to within a nanometre; at rest the floor's run takes at most a third of the other's
 // iterations. A step from rest with a floor far above its motion takes no iteration at all, and one
 // with a floor below it solves as without one.
 TEST(Integrators, VelocityFloorStopsChasingRoundOffAtRest) {
@@ -592,6 +592,33 @@ TEST(Integrators, VelocityFloorStopsChasingRoundOffAtRest) {
   EXPECT_GT(it_none, 0);
   EXPECT_EQ(it_low, it_none);
   EXPECT_EQ((v_low - v_none).cwiseAbs().maxCoeff(), 0.0);
+}
+
+// The floor counts the mass of the nodes that move only, in both precisions: with the fixed
+// bottom layer a million times heavier, a floor of 1 mm/s against gravity's h g = 1 cm/s a step
+// still lets CG iterate (with the fixed mass counted it would stop at once), and 1 m/s stops it.
+TYPED_TEST(IntegratorsTyped, VelocityFloorCountsTheMovingNodesOnly) {
+  using S = TypeParam;
+  using IE = ImplicitEulerIntegrator<S>;
+  auto first_step = [](double velocity_tolerance) {
+    SphereModel<S> model = block<S>({4, 3, 3}, S(0.005), tissue<S>());
+    for (Index i = 0; i < model.num_nodes(); ++i)
+      if (model.rest_positions()(i, 2) < S(1e-9)) {
+        model.set_fixed(i);
+        model.masses()[i] *= S(1e6);
+      }
+    ForceModel<S> forces(model);
+    typename IE::Options o;
+    o.tolerance = S(1e-4);
+    o.velocity_tolerance = S(velocity_tolerance);
+    IE ie(o);
+    ie.prepare(model);
+    const IntegratorResult r = ie.step(model, forces, S(1e-3));
+    EXPECT_TRUE(r.ok);
+    return r.iterations;
+  };
+  EXPECT_GT(first_step(1e-3), 0);
+  EXPECT_EQ(first_step(1.0), 0);
 }
 
 // CG's stopping test weighs the residual by the preconditioner (Options::tolerance), which makes

@@ -58,12 +58,19 @@ class ImplicitEulerIntegrator final : public Integrator<Scalar> {
     /// CG also stops once the velocity change is solved to about this speed (m/s):
     /// \f$|\mathbf{r}|_{P^{-1}}^2 \le\f$ velocity_tolerance\f$^2 \sum_i m_i\f$ over the
     /// nodes that move (for the plain test, \f$|\mathbf{r}| \le\f$ velocity_tolerance
-    /// \f$\sqrt{\sum_i m_i^2}\f$), the residual of a velocity error of that speed at every node
-    /// (its weighted norm is at least that, as A holds M). The relative test alone asks the
-    /// same fraction of a right-hand side that vanishes as the tissue comes to rest, where the
-    /// forces' own round-off is all that is left of it: on the bundled uterus held still CG then
-    /// took 15 iterations a step instead of 3 (docs/benchmarks.md). 0 (or a negative value or NaN)
-    /// turns the floor off.
+    /// \f$\sqrt{\sum_i m_i^2}\f$): with P = M that is a velocity error of this mass-weighted
+    /// RMS. As far as P matches A it is about that; block-Jacobi's P holds M and more, so in smooth
+    /// modes it accepts up to about \f$\sqrt{P_{ii}/m_i}\f$ times as much (about 2 for tissue
+    /// at h = 1 ms), and the RMS is over the whole model, so a small moving region may carry
+    /// more. The relative test alone asks the same fraction of a right-hand side that vanishes as
+    /// the tissue comes to rest, where the forces' own round-off is all that is left of it: on
+    /// the bundled uterus held still CG then took 15 iterations a step instead of 4 while moving
+    /// (docs/benchmarks.md). The floor decides whenever the step's velocity change is below
+    /// about velocity_tolerance / tolerance: at the real-time 1e-3, only near rest; at the default
+    /// 1e-6, in any step that changes the velocities by less than about 1 mm/s. One default for
+    /// both precisions (float's own round-off lies above it, so there it rarely decides). 0 (or a
+    /// negative value or NaN) turns the floor off; a very large value turns CG off (the step
+    /// keeps its warm start).
     Scalar velocity_tolerance{Scalar(1e-9)};
     /// CG iteration cap; reaching it is not a failure (the partial solution is used and the
     /// iteration count reported), a breakdown is.

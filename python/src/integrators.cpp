@@ -63,7 +63,7 @@ extrapolate_warm_start: CG starts from the velocity change extrapolated from the
 (default True; False: from the last step's). The same solution to the tolerance, in fewer
 iterations under smooth loading.
 velocity_tolerance: CG also stops once the velocity change is solved to about this speed in m/s
-(r P^-1 r <= v_tol^2 * the moving nodes' mass; default 1e-9; 0: the relative test alone). A
+(r^T P^-1 r <= v_tol^2 * the moving nodes' mass; default 1e-9; 0: the relative test alone). A
 tissue at rest leaves a right-hand side of round-off, which the relative test alone chases.)")
       .def(
           py::init([](const std::string& solver, const std::string& jacobian, Scalar tolerance,
