@@ -158,15 +158,15 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg(SphereModel<Scalar>& 
   m_previous_dt = m_last_dt > Scalar(0) ? dt : Scalar(0);
   for (const Index i : forces.immobile_nodes()) m_dv.row(i).setZero();
   if (!detail::all_finite(m_dv.data(), m_dv.size())) m_dv.setZero();
-  {  // the velocity floor over the nodes that move
+  // The velocity floor over the nodes that move (off at 0, a negative value or NaN).
+  m_floor2 = m_plain_floor = Scalar(0);
+  if (const Scalar vt = m_options.velocity_tolerance; vt > Scalar(0)) {
     const auto mass = model.masses();
     Scalar sum = mass.sum(), sum2 = mass.squaredNorm();
     for (const Index i : forces.immobile_nodes()) {
       sum -= mass[i];
       sum2 -= mass[i] * mass[i];
     }
-    const Scalar vt =
-        m_options.velocity_tolerance > 0 ? m_options.velocity_tolerance : 0;  // NaN: 0
     m_floor2 = vt * vt * std::max(sum, Scalar(0));
     m_plain_floor = vt * std::sqrt(std::max(sum2, Scalar(0)));
   }
