@@ -4,7 +4,8 @@
 // tetrahedral part. The model first sags for 0.5 s with the probe away, then the probe presses
 // for 0.3 s; then STEPS steps are timed one by one. Not a Google Benchmark: it reports the
 // distribution (mean, p50, p99, max) and the CG iterations, for the scale issue's models (the
-// bundled uterus, the VHF left adnexa, a pelvis-sized model: docs/benchmarks.md).
+// bundled uterus, the VHF left adnexa, a pelvis-sized model: docs/benchmarks.md); also the mean
+// time of contact detection within the step and how often the part-contact pair list was rebuilt.
 //
 //   bench_model_step MODEL.fsm [--law links|continuum] [--threads N] [--tolerance TOL]
 //                    [--velocity-tolerance M_PER_S] [--steps N] [--no-probe]
@@ -182,8 +183,11 @@ int main(int argc, char** argv) {
     support::CapsuleProbe cp{support::outermost_free_sphere(model.spheres, *target)};
     contacts.add_instrument(cp.instrument(-0.02));  // away while the model sags
     long diverged = 0, recovered = 0, diverged_before = 0;
+    double detection_s = 0;  // the time in contact detection (ContactSolver::compute)
     auto step = [&] {
+      const auto t0 = std::chrono::steady_clock::now();
       contacts.compute(sim.model(), sim.forces());
+      detection_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       const StepReport<double> r = sim.step(1e-3);
       contacts.collect(sim.forces());
       diverged += !r.advanced();
@@ -222,6 +226,8 @@ int main(int argc, char** argv) {
     }
     long iterations = 0, on_pool = 0, unconverged = 0;
     Index probe_contacts = 0;
+    const Index rebuilds_before = contacts.pair_list_rebuilds();
+    detection_s = 0;
     // --preconditioners: the step's matrix 10 and 100 steps before the end, contacts in.
     std::vector<std::pair<int, Eigen::SparseMatrix<double>>> lagged;
     for (int s = 0; s < steps; ++s) {
@@ -264,7 +270,8 @@ int main(int argc, char** argv) {
           "\"element_tangent_quality\": %g, \"element_tangents\": %d, \"fluttered\": %d, "
           "\"flutter_guard\": %s, \"extrapolated_warm_start\": %s, \"reuse_end_forces\": %s, "
           "\"gravity\": \"%s\", \"smoothing\": \"%s\", \"adaptive_threads\": %s, "
-          "\"pool_share\": %.3f, \"links_partitioned\": %s, \"nu\": %g}\n",
+          "\"pool_share\": %.3f, \"links_partitioned\": %s, \"nu\": %g, "
+          "\"detection_mean_us\": %.1f, \"pair_list_rebuilds\": %d}\n",
           path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
           int(sim.model().num_tetrahedra()), law.c_str(), threads, tolerance, velocity_tolerance,
           probe ? "true" : "false", int(probe_contacts), int(contacts.num_contacts()), steps,
@@ -275,20 +282,23 @@ int main(int argc, char** argv) {
           extrapolate ? "true" : "false", reuse ? "true" : "false", gravity_y ? "-y" : "-z",
           smoothing.c_str(), adaptive ? "true" : "false", double(on_pool) / double(steps),
           sim.forces().links_partitioned() ? "true" : "false",
-          sim.model().region(0).material.poisson_ratio);
+          sim.model().region(0).material.poisson_ratio, detection_s / double(steps) * 1e6,
+          int(contacts.pair_list_rebuilds() - rebuilds_before));
     else
       std::printf(
           "%s: %d spheres, %d links, %d tetrahedra; %s law (%s strain), %d thread(s)%s, CG to %g; "
           "probe on '%s' (%d contacts of %d)\n  1 ms step: mean %.1f us, p50 %.1f, p99 "
           "%.1f, max %.1f; %.2f CG iterations; %ld steps retried as half steps, %ld diverged "
-          "(%ld before timing); %d elements with the element tangent, %d of them fluttered\n",
+          "(%ld before timing); %d elements with the element tangent, %d of them fluttered; "
+          "contact detection %.1f us a step, part-contact pair list rebuilt %d times\n",
           path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
           int(sim.model().num_tetrahedra()), law.c_str(), smoothing.c_str(), threads,
           sim.forces().links_partitioned() ? " (links shared by node)" : "", tolerance,
           target->name.c_str(), int(probe_contacts), int(contacts.num_contacts()), mean * 1e6,
           pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it, recovered, diverged, diverged_before,
           int(sim.forces().continuum_element_tangents()),
-          int(sim.forces().continuum_fluttered_elements()));
+          int(sim.forces().continuum_fluttered_elements()), detection_s / double(steps) * 1e6,
+          int(contacts.pair_list_rebuilds() - rebuilds_before));
     // "held": at the end of the timed steps, the probe held at its depth for 0.3 s + STEPS ms;
     // "pressing": 110 ms after the probe was pressed in, the tissue still moving.
     // Where the iterations are: block-Jacobi but with these groups of nodes solved exactly (each

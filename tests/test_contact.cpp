@@ -236,6 +236,58 @@ TEST(ContactSolver, PartContactStartsAtTheRestConfiguration) {
   EXPECT_LT(f.colwise().sum().norm(), 1e-12);
 }
 
+// The part-contact pair list (ContactOptions::verlet_skin) finds every contact a rescan finds, at
+// every step, while the regions move at different speeds, one of them across the model into the
+// others; and it rebuilds less often than a bound on the fastest sphere alone would (each region's
+// moves are bounded apart, and far regions may move farther before their spheres could meet).
+TEST(ContactSolver, PartContactListMatchesARescanAsRegionsMove) {
+  std::mt19937 rng(11);
+  SphereModel<double> m = random_spheres(rng, 150);
+  const Index moving = m.add_region("moving", tissue<double>());
+  for (int i = 0; i < 20; ++i)  // a cluster 3 cm beyond the others in x
+    m.add_node(V3(0.07 + 0.002 * (i % 4), 0.02 + 0.003 * (i / 4 % 5), 0.02), 0.002, 0.001, moving);
+  ContactOptions<double> listed, rescan;
+  rescan.verlet_skin = 0;
+  ContactSolver<double> a(m, listed), b(m, rescan);
+  std::normal_distribution<double> jiggle(0, 1e-4);
+  const Index rebuilds0 = a.pair_list_rebuilds();
+  int steps = 0, with_contacts = 0, all_spheres_bound = 0;
+  Positions<double> built = m.positions();
+  for (; steps < 200; ++steps) {
+    for (Index i = 0; i < m.num_nodes(); ++i) {
+      const bool fast = m.node_regions()[i] == moving;
+      // The cluster crosses 4 cm toward the others in 100 steps, then stays; the rest jiggles
+      // (region 0 ten times more than the others).
+      if (fast && steps < 100) m.positions()(i, 0) -= 4e-4;
+      const double scale = fast ? 0.0 : (m.node_regions()[i] == 0 ? 1.0 : 0.1);
+      for (int c = 0; c < 3; ++c) m.positions()(i, c) += scale * jiggle(rng);
+    }
+    // What a list rebuilt when any sphere moved half the skin would have done.
+    if ((m.positions() - built).rowwise().norm().maxCoeff() > 0.5 * listed.verlet_skin) {
+      ++all_spheres_bound;
+      built = m.positions();
+    }
+    Positions<double> fa = Positions<double>::Zero(m.num_nodes(), 3), fb = fa;
+    a.compute(m, fa);
+    b.compute(m, fb);
+    ASSERT_EQ(a.num_contacts(), b.num_contacts()) << steps;
+    ASSERT_LT((fa - fb).cwiseAbs().maxCoeff(), 1e-12 * std::max(1.0, fb.cwiseAbs().maxCoeff()))
+        << steps;
+    with_contacts += b.num_contacts() > 0;
+  }
+  EXPECT_EQ(with_contacts, steps);
+  // The cluster met the others: its spheres are in contacts at the end.
+  bool met = false;
+  for (Index k = 0; k < a.num_contacts(); ++k)
+    met = met || m.node_regions()[a.contacts()[k].sphere] == moving ||
+          m.node_regions()[a.contacts()[k].other] == moving;
+  EXPECT_TRUE(met);
+  const Index rebuilds = a.pair_list_rebuilds() - rebuilds0;
+  EXPECT_GT(rebuilds, 1);
+  EXPECT_LT(rebuilds, all_spheres_bound);
+  EXPECT_EQ(b.pair_list_rebuilds(), steps);  // (no skin: a scan every step)
+}
+
 // The onset of the contact law (PenaltyContact::onset): without it the plain penalty; with it
 // s = d^2 / 2e below e and d - e/2 beyond, continuous with its slope at 0 and at e; the damping
 // ramps in with the slope, so a contact that barely touches neither pushes nor pulls hard. The

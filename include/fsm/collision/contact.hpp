@@ -135,7 +135,9 @@ struct ContactOptions {
   /// with).
   bool spatial_hash{true};
   /// Part contacts keep a Verlet list of candidate pairs within reach plus this skin (m) and
-  /// rescan only after some sphere moved more than half of it; 0 rescans every step.
+  /// rescan only once two regions' largest moves since the list was built add up to more than
+  /// the skin (or, for regions whose spheres were farther apart than that, than their gap); with
+  /// more than 32 regions, once some sphere moved more than half the skin. 0 rescans every step.
   Scalar verlet_skin{Scalar(0.002)};
 };
 
@@ -237,11 +239,20 @@ class ContactSolver {
   void for_each_in_box(const Vector3<Scalar>& lo, const Vector3<Scalar>& hi, Visit&& visit) const;
   bool linked(Index i, Index j) const noexcept;
   void record(const Contact<Scalar>& c) noexcept;
+  bool region_pairs(Index a, Index b) const noexcept;
+  void set_region_thresholds(const SphereModel<Scalar>& model) noexcept;
+  bool list_holds(const SphereModel<Scalar>& model) noexcept;
   template <typename Visit>
   void for_each_part_pair(const SphereModel<Scalar>& model, Scalar reach_extra,
                           Visit&& visit) const;
+  // A candidate pair for part contact and the distance its spheres touch closer than.
+  struct PartPair {
+    Index i, j;
+    Scalar threshold;
+  };
+  Scalar pair_threshold(const SphereModel<Scalar>& model, Index i, Index j) const noexcept;
   template <typename Emit>
-  void part_contact(const SphereModel<Scalar>& model, Index i, Index j, Emit&& emit) noexcept;
+  void part_contact(const SphereModel<Scalar>& model, const PartPair& pair, Emit&& emit) noexcept;
   // Finds every contact at the model's state and calls emit(PenaltyContact) for each (its
   // `force` the force at that state); records and wrenches follow the emitted forces.
   template <typename Emit>
@@ -290,10 +301,16 @@ class ContactSolver {
   Index m_candidates{0}, m_narrow_tests{0};
   // Verlet list of part-contact candidate pairs and the positions it was built at.
   // (a copy keeps the reserved capacity: a list that does not fit is rescanned every step)
-  fsm::detail::ReservedVector<std::pair<Index, Index>> m_pairs;
+  fsm::detail::ReservedVector<PartPair> m_pairs;
   Positions<Scalar> m_list_x;
   bool m_list_valid{false};
   Index m_rebuilds{0};
+  // Per region, for models with at most k_max_list_regions of them (list_holds): the largest
+  // move since the list's build, the box of its centres and its largest radius at the build, and
+  // per pair of regions the moves allowed before a rebuild (R x R).
+  static constexpr Index k_max_list_regions = 32;
+  std::vector<Scalar> m_region_move, m_region_threshold, m_region_radius;
+  std::vector<Vector3<Scalar>> m_region_box;
   const ForceModel<Scalar>* m_filled{nullptr};  // the force model compute() last filled
 };
 

@@ -86,6 +86,16 @@ void ContactSolver<Scalar>::refresh(const SphereModel<Scalar>& model) {
   m_pairs.reserve(32 * std::size_t(std::max<Index>(n, 1)));
   m_list_x.resize(n, 3);
   m_list_valid = false;
+  // Per-region bounds of the list's validity (list_holds), for models with few regions.
+  const Index R = model.num_regions();
+  m_region_move.assign(R <= k_max_list_regions ? std::size_t(R) : 0, Scalar(0));
+  m_region_threshold.assign(m_region_move.size() * m_region_move.size(), Scalar(0));
+  m_region_box.assign(2 * m_region_move.size(), Vector3<Scalar>::Zero());
+  m_region_radius.assign(m_region_move.size(), Scalar(0));
+  for (Index i = 0; i < n && !m_region_radius.empty(); ++i) {
+    Scalar& r = m_region_radius[std::size_t(model.node_regions()[i])];
+    r = std::max(r, model.radii()[i]);
+  }
   m_num_contacts = 0;
   m_wrenches.assign(m_instruments.size(), Wrench<Scalar>{});
 }
@@ -514,31 +524,108 @@ void ContactSolver<Scalar>::detect(const SphereModel<Scalar>& model, Emit&& emit
   // Parts against parts (and folding within a part, when asked).
   if (!m_options.part_contact && !m_options.self_contact) return;
   const Scalar skin = m_options.verlet_skin;
-  bool rebuild = !m_list_valid || !(skin > 0);
-  if (!rebuild) {  // has any sphere moved more than half the skin since the list was built?
-    const Scalar limit = Scalar(0.25) * skin * skin;
-    for (Index q = 0; q < model.num_nodes() && !rebuild; ++q)
-      rebuild = (x.row(q) - m_list_x.row(q)).squaredNorm() > limit;
-  }
+  bool rebuild = !m_list_valid || !(skin > 0) || !list_holds(model);
   if (rebuild) {
     m_pairs.clear();
     bool fits = true;
     for_each_part_pair(model, skin, [&](Index i, Index j) {
       if (m_pairs.size() < m_pairs.capacity())
-        m_pairs.emplace_back(i, j);
+        m_pairs.push_back({i, j, pair_threshold(model, i, j)});
       else
         fits = false;
     });
     m_list_x = x;
     m_list_valid = fits && skin > 0;  // a list that did not fit is not kept: scan again next step
+    if (m_list_valid) set_region_thresholds(model);
     ++m_rebuilds;
     if (!fits) {  // rare: more candidate pairs than reserved; handle this step by scanning
-      for_each_part_pair(model, Scalar(0),
-                         [&](Index i, Index j) { part_contact(model, i, j, emit); });
+      for_each_part_pair(model, Scalar(0), [&](Index i, Index j) {
+        part_contact(model, {i, j, pair_threshold(model, i, j)}, emit);
+      });
       return;
     }
   }
-  for (const auto& [i, j] : m_pairs) part_contact(model, i, j, emit);
+  for (const PartPair& p : m_pairs) part_contact(model, p, emit);
+}
+
+// Whether part contact can pair regions a and b (a == b: within one region, self contact).
+template <typename Scalar>
+bool ContactSolver<Scalar>::region_pairs(Index a, Index b) const noexcept {
+  return a == b ? m_options.self_contact : m_options.part_contact;
+}
+
+// At a list's build: for each pair of regions, how far their spheres may move between them
+// (the larger of the skin and the gap between the regions' boxes less their largest radii)
+// before a pair of theirs that the list left out could be in reach.
+template <typename Scalar>
+void ContactSolver<Scalar>::set_region_thresholds(const SphereModel<Scalar>& model) noexcept {
+  const std::size_t R = m_region_move.size();
+  if (R == 0) return;
+  const auto x = model.positions();
+  const auto region = model.node_regions();
+  const Scalar inf = std::numeric_limits<Scalar>::infinity();
+  for (std::size_t r = 0; r < R; ++r) {
+    m_region_box[2 * r].setConstant(inf);
+    m_region_box[2 * r + 1].setConstant(-inf);
+  }
+  for (Index q = 0; q < model.num_nodes(); ++q) {
+    const std::size_t r = std::size_t(region[q]);
+    m_region_box[2 * r] = m_region_box[2 * r].cwiseMin(x.row(q).transpose());
+    m_region_box[2 * r + 1] = m_region_box[2 * r + 1].cwiseMax(x.row(q).transpose());
+  }
+  const Scalar skin = m_options.verlet_skin;
+  for (std::size_t a = 0; a < R; ++a)
+    for (std::size_t b = 0; b < R; ++b) {
+      // The distance between the boxes (0 when they overlap); an empty region's box is
+      // inverted and gives infinity: it has no sphere to pair.
+      const Vector3<Scalar> gap = (m_region_box[2 * b] - m_region_box[2 * a + 1])
+                                      .cwiseMax(m_region_box[2 * a] - m_region_box[2 * b + 1])
+                                      .cwiseMax(Vector3<Scalar>::Zero());
+      const Scalar free = gap.norm() - m_region_radius[a] - m_region_radius[b];
+      m_region_threshold[a * R + b] = a == b ? skin : std::max(skin, free);
+    }
+}
+
+// Whether the part-contact list still holds every pair that can be in reach. A pair the list left
+// out was farther apart than reach plus the skin (or, across regions, than the regions' threshold
+// of set_region_thresholds allows for), so it can be in reach only once its two spheres' moves
+// since the build add up to more than that. The moves are bounded per region: the tissue an
+// instrument pushes does not make chains elsewhere rescan, and two regions far apart may move
+// that far before either's spheres could meet. (Many regions: one bound for all, twice the
+// largest move against the skin.) A NaN position does not count: such a state is never stepped.
+template <typename Scalar>
+bool ContactSolver<Scalar>::list_holds(const SphereModel<Scalar>& model) noexcept {
+  const auto x = model.positions();
+  const std::size_t R = m_region_move.size();
+  if (R == 0) {
+    const Scalar limit = Scalar(0.25) * m_options.verlet_skin * m_options.verlet_skin;
+    for (Index q = 0; q < model.num_nodes(); ++q)
+      if ((x.row(q) - m_list_x.row(q)).squaredNorm() > limit) return false;
+    return true;
+  }
+  std::fill(m_region_move.begin(), m_region_move.end(), Scalar(0));
+  const auto region = model.node_regions();
+  const Scalar* xp = x.data();
+  const Scalar* lp = m_list_x.data();
+  // (A region's nodes are usually consecutive: its largest move is kept in a register.)
+  for (Index q = 0; q < model.num_nodes();) {
+    const Index r = region[q];
+    Scalar m = 0;
+    for (; q < model.num_nodes() && region[q] == r; ++q) {
+      const std::ptrdiff_t k = 3 * std::ptrdiff_t(q);
+      const Scalar dx = xp[k] - lp[k], dy = xp[k + 1] - lp[k + 1], dz = xp[k + 2] - lp[k + 2];
+      m = std::max(m, dx * dx + dy * dy + dz * dz);
+    }
+    Scalar& M = m_region_move[std::size_t(r)];
+    M = std::max(M, m);
+  }
+  for (Scalar& m : m_region_move) m = std::sqrt(m);
+  for (std::size_t a = 0; a < R; ++a)
+    for (std::size_t b = a; b < R; ++b)
+      if (region_pairs(Index(a), Index(b)) &&
+          m_region_move[a] + m_region_move[b] > m_region_threshold[a * R + b])
+        return false;
+  return true;
 }
 
 // Every candidate pair (i, j) for part contact whose spheres are within reach + extra, once each.
@@ -572,23 +659,32 @@ void ContactSolver<Scalar>::for_each_part_pair(const SphereModel<Scalar>& model,
   }
 }
 
+// Spheres i and j of a part-contact pair touch closer than this: their radii's sum, or across
+// regions the lesser of that and their rest distance (parts that overlap at rest are at rest in
+// contact). Fixed while the model is: the list keeps it.
+template <typename Scalar>
+Scalar ContactSolver<Scalar>::pair_threshold(const SphereModel<Scalar>& model, Index i,
+                                             Index j) const noexcept {
+  const Scalar reach = model.radii()[i] + model.radii()[j];
+  if (model.node_regions()[i] == model.node_regions()[j]) return reach;
+  return std::min(reach, (model.rest_positions().row(j) - model.rest_positions().row(i)).norm());
+}
+
 template <typename Scalar>
 template <typename Emit>
-void ContactSolver<Scalar>::part_contact(const SphereModel<Scalar>& model, Index i, Index j,
+void ContactSolver<Scalar>::part_contact(const SphereModel<Scalar>& model, const PartPair& pair,
                                          Emit&& emit) noexcept {
   ++m_candidates;
+  const Index i = pair.i, j = pair.j;
   const auto x = model.positions();
   const auto rest = model.rest_positions();
   const auto radius = model.radii();
   const auto mass = model.masses();
-  const bool same = model.node_regions()[i] == model.node_regions()[j];
-  const Scalar reach_ij = radius[i] + radius[j];
+  const Scalar threshold = pair.threshold;
   const Vector3<Scalar> d = (x.row(j) - x.row(i)).transpose();
   const Scalar dist2 = d.squaredNorm();
-  if (dist2 >= reach_ij * reach_ij) return;
+  if (!(dist2 < threshold * threshold)) return;
   ++m_narrow_tests;
-  const Scalar rest_dist = (rest.row(j) - rest.row(i)).norm();
-  const Scalar threshold = same ? reach_ij : std::min(reach_ij, rest_dist);
   const Scalar dist = std::sqrt(dist2);
   const Scalar depth = threshold - dist;
   if (!(depth > 0)) return;
