@@ -540,12 +540,20 @@ void ContactSolver<Scalar>::detect(const SphereModel<Scalar>& model, Emit&& emit
     ++m_rebuilds;
     if (!fits) {  // rare: more candidate pairs than reserved; handle this step by scanning
       for_each_part_pair(model, Scalar(0), [&](Index i, Index j) {
+        ++m_candidates;
         part_contact(model, {i, j, pair_threshold(model, i, j)}, emit);
       });
       return;
     }
   }
-  for (const PartPair& p : m_pairs) part_contact(model, p, emit);
+  // The pairs' distance test in one tight pass; part_contact() for those within their threshold.
+  m_candidates += Index(m_pairs.size());
+  for (const PartPair& p : m_pairs) {
+    const Scalar* a = xp + 3 * std::ptrdiff_t(p.i);
+    const Scalar* b = xp + 3 * std::ptrdiff_t(p.j);
+    const Scalar dx = b[0] - a[0], dy = b[1] - a[1], dz = b[2] - a[2];
+    if (dx * dx + dy * dy + dz * dz < p.threshold * p.threshold) part_contact(model, p, emit);
+  }
 }
 
 // Whether part contact can pair regions a and b (a == b: within one region, self contact).
@@ -674,7 +682,6 @@ template <typename Scalar>
 template <typename Emit>
 void ContactSolver<Scalar>::part_contact(const SphereModel<Scalar>& model, const PartPair& pair,
                                          Emit&& emit) noexcept {
-  ++m_candidates;
   const Index i = pair.i, j = pair.j;
   const auto x = model.positions();
   const auto rest = model.rest_positions();
