@@ -240,52 +240,148 @@ TEST(ContactSolver, PartContactStartsAtTheRestConfiguration) {
 // every step, while the regions move at different speeds, one of them across the model into the
 // others; and it rebuilds less often than a bound on the fastest sphere alone would (each region's
 // moves are bounded apart, and far regions may move farther before their spheres could meet).
+// Also with self contact (a region against itself counts its moves twice: here the crossing
+// cluster meets a still one of its own region), and with more than 32 regions, where the list
+// falls back to that one bound and rebuilds exactly when it says.
 TEST(ContactSolver, PartContactListMatchesARescanAsRegionsMove) {
-  std::mt19937 rng(11);
+  for (const auto& [self_contact, extra_regions] :
+       {std::pair{false, 0}, std::pair{true, 0}, std::pair{false, 40}}) {
+    SCOPED_TRACE(testing::Message()
+                 << "self contact " << self_contact << ", extra regions " << extra_regions);
+    std::mt19937 rng(11);
+    SphereModel<double> m = random_spheres(rng, 150);
+    const Index moving = m.add_region("moving", tissue<double>());
+    const Index first_moving = m.num_nodes();
+    // A cluster about 2 cm beyond the others in x that crosses into them; with self contact it
+    // stays 10 cm farther off, where it meets only a still cluster of its own region placed where
+    // it ends, 3 mm above it (4 cm apart at rest, so not excluded as neighbours): only the region
+    // against itself can ask for those rebuilds.
+    const double away = self_contact ? 0.1 : 0.0;
+    for (int i = 0; i < 20; ++i)
+      m.add_node(V3(away + 0.07 + 0.002 * (i % 4), 0.02 + 0.003 * (i / 4 % 5), 0.02), 0.002, 0.001,
+                 moving);
+    for (int i = 0; i < (self_contact ? 20 : 0); ++i)
+      m.add_node(V3(away + 0.03 + 0.002 * (i % 4), 0.02 + 0.003 * (i / 4 % 5), 0.023), 0.002, 0.001,
+                 moving);
+    for (int r = 0; r < extra_regions; ++r)  // regions without spheres
+      m.add_region("empty" + std::to_string(r), tissue<double>());
+    ContactOptions<double> listed, rescan;
+    listed.self_contact = rescan.self_contact = self_contact;
+    rescan.verlet_skin = 0;
+    ContactSolver<double> a(m, listed), b(m, rescan);
+    std::normal_distribution<double> jiggle(0, 1e-4);
+    {  // both lists built at the start, where the count below starts from
+      Positions<double> f = Positions<double>::Zero(m.num_nodes(), 3);
+      a.compute(m, f);
+      b.compute(m, f);
+    }
+    const Index rebuilds0 = a.pair_list_rebuilds();
+    int steps = 0, with_contacts = 0, all_spheres_bound = 0;
+    Positions<double> built = m.positions();
+    for (; steps < 200; ++steps) {
+      for (Index i = 0; i < m.num_nodes(); ++i) {
+        const bool fast = i >= first_moving && i < first_moving + 20;
+        // The cluster crosses 4 cm toward the others in 100 steps, then stays; the rest jiggles
+        // (region 0 ten times more than the others).
+        if (fast && steps < 100) m.positions()(i, 0) -= 4e-4;
+        const double scale =
+            m.node_regions()[i] == moving ? 0.0 : (m.node_regions()[i] == 0 ? 1.0 : 0.1);
+        for (int c = 0; c < 3; ++c) m.positions()(i, c) += scale * jiggle(rng);
+      }
+      // What a list rebuilt when any sphere moved half the skin would have done.
+      if ((m.positions() - built).rowwise().norm().maxCoeff() > 0.5 * listed.verlet_skin) {
+        ++all_spheres_bound;
+        built = m.positions();
+      }
+      Positions<double> fa = Positions<double>::Zero(m.num_nodes(), 3), fb = fa;
+      a.compute(m, fa);
+      b.compute(m, fb);
+      ASSERT_EQ(a.num_contacts(), b.num_contacts()) << steps;
+      ASSERT_LT((fa - fb).cwiseAbs().maxCoeff(), 1e-12 * std::max(1.0, fb.cwiseAbs().maxCoeff()))
+          << steps;
+      with_contacts += b.num_contacts() > 0;
+    }
+    EXPECT_EQ(with_contacts, steps);
+    // The crossing cluster met the others (with self contact: its still twin) at the end.
+    auto crossing = [&](Index i) { return i >= first_moving && i < first_moving + 20; };
+    bool met = false, folded = false;
+    for (Index k = 0; k < a.num_contacts(); ++k) {
+      const Index i = a.contacts()[k].sphere, j = a.contacts()[k].other;
+      if (j < 0 || crossing(i) == crossing(j)) continue;
+      const bool twin = m.node_regions()[i] == moving && m.node_regions()[j] == moving;
+      met = met || !twin;
+      folded = folded || twin;
+    }
+    EXPECT_EQ(met, !self_contact);
+    EXPECT_EQ(folded, self_contact);
+    // From one build, the per-region bounds never ask for a rebuild before the one bound does
+    // (each is at most twice the fastest move); over the run they ask for fewer here, and for
+    // as many with self contact, where the crossing cluster's own moves count twice.
+    const Index rebuilds = a.pair_list_rebuilds() - rebuilds0;
+    EXPECT_GT(rebuilds, 1);
+    if (extra_regions > 0)
+      EXPECT_EQ(rebuilds, all_spheres_bound);
+    else if (self_contact)
+      EXPECT_LE(rebuilds, all_spheres_bound);
+    else
+      EXPECT_LT(rebuilds, all_spheres_bound);
+    EXPECT_EQ(b.pair_list_rebuilds(), steps + 1);  // (no skin: a scan every step)
+  }
+}
+
+// Regions added, and spheres moved into them, after the solver was sized (without refresh()):
+// the per-region arrays do not cover them, so the list falls back to the one bound for all (no
+// write past their end, which ASan would report), and still finds what a rescan finds.
+TEST(ContactSolver, RegionsAddedAfterRefreshFallBackToOneBound) {
+  std::mt19937 rng(4);
   SphereModel<double> m = random_spheres(rng, 150);
-  const Index moving = m.add_region("moving", tissue<double>());
-  for (int i = 0; i < 20; ++i)  // a cluster 3 cm beyond the others in x
-    m.add_node(V3(0.07 + 0.002 * (i % 4), 0.02 + 0.003 * (i / 4 % 5), 0.02), 0.002, 0.001, moving);
   ContactOptions<double> listed, rescan;
   rescan.verlet_skin = 0;
   ContactSolver<double> a(m, listed), b(m, rescan);
-  std::normal_distribution<double> jiggle(0, 1e-4);
-  const Index rebuilds0 = a.pair_list_rebuilds();
-  int steps = 0, with_contacts = 0, all_spheres_bound = 0;
-  Positions<double> built = m.positions();
-  for (; steps < 200; ++steps) {
-    for (Index i = 0; i < m.num_nodes(); ++i) {
-      const bool fast = m.node_regions()[i] == moving;
-      // The cluster crosses 4 cm toward the others in 100 steps, then stays; the rest jiggles
-      // (region 0 ten times more than the others).
-      if (fast && steps < 100) m.positions()(i, 0) -= 4e-4;
-      const double scale = fast ? 0.0 : (m.node_regions()[i] == 0 ? 1.0 : 0.1);
-      for (int c = 0; c < 3; ++c) m.positions()(i, c) += scale * jiggle(rng);
-    }
-    // What a list rebuilt when any sphere moved half the skin would have done.
-    if ((m.positions() - built).rowwise().norm().maxCoeff() > 0.5 * listed.verlet_skin) {
-      ++all_spheres_bound;
-      built = m.positions();
-    }
-    Positions<double> fa = Positions<double>::Zero(m.num_nodes(), 3), fb = fa;
-    a.compute(m, fa);
-    b.compute(m, fb);
-    ASSERT_EQ(a.num_contacts(), b.num_contacts()) << steps;
-    ASSERT_LT((fa - fb).cwiseAbs().maxCoeff(), 1e-12 * std::max(1.0, fb.cwiseAbs().maxCoeff()))
-        << steps;
-    with_contacts += b.num_contacts() > 0;
+  for (int k = 0; k < 3; ++k) {
+    const Index r = m.add_region("late" + std::to_string(k), tissue<double>());
+    for (Index i = k; i < m.num_nodes(); i += 7) m.node_regions()[i] = r;
   }
-  EXPECT_EQ(with_contacts, steps);
-  // The cluster met the others: its spheres are in contacts at the end.
-  bool met = false;
-  for (Index k = 0; k < a.num_contacts(); ++k)
-    met = met || m.node_regions()[a.contacts()[k].sphere] == moving ||
-          m.node_regions()[a.contacts()[k].other] == moving;
-  EXPECT_TRUE(met);
-  const Index rebuilds = a.pair_list_rebuilds() - rebuilds0;
-  EXPECT_GT(rebuilds, 1);
-  EXPECT_LT(rebuilds, all_spheres_bound);
-  EXPECT_EQ(b.pair_list_rebuilds(), steps);  // (no skin: a scan every step)
+  std::normal_distribution<double> jiggle(0, 3e-4);
+  for (int step = 0; step < 50; ++step) {
+    for (Index i = 0; i < m.num_nodes(); ++i)
+      for (int c = 0; c < 3; ++c) m.positions()(i, c) += jiggle(rng);
+    Positions<double> fa = Positions<double>::Zero(m.num_nodes(), 3), fb = fa;
+    ASSERT_TRUE(a.compute(m, fa));
+    ASSERT_TRUE(b.compute(m, fb));
+    ASSERT_EQ(a.num_contacts(), b.num_contacts()) << step;
+    ASSERT_LT((fa - fb).cwiseAbs().maxCoeff(), 1e-12 * std::max(1.0, fb.cwiseAbs().maxCoeff()))
+        << step;
+  }
+  EXPECT_GT(a.pair_list_rebuilds(), 1);
+  EXPECT_LT(a.pair_list_rebuilds(), 50);
+}
+
+// More candidate pairs than the list has room for (32 a sphere): each step scans instead and
+// keeps no list, and still finds every contact. 100 + 100 spheres of two regions, 2 mm in radius,
+// at rest 1 cm apart, squeezed into a 2 mm box: every one of the 10,000 pairs across the regions
+// is within its threshold (4 mm).
+TEST(ContactSolver, PartContactListThatDoesNotFitScansInstead) {
+  SphereModel<double> m;
+  m.add_region("a", tissue<double>());
+  m.add_region("b", tissue<double>());
+  for (int i = 0; i < 200; ++i)
+    m.add_node(V3(0.01 * (i % 10), 0.01 * (i / 10 % 10), 0.01 * (i / 100)), 0.002, 0.001, i % 2);
+  std::mt19937 rng(2);
+  std::uniform_real_distribution<double> u(0, 0.002);
+  for (Index i = 0; i < m.num_nodes(); ++i)
+    for (int c = 0; c < 3; ++c) m.positions()(i, c) = u(rng);
+  ContactSolver<double> solver(m);
+  for (int step = 0; step < 3; ++step) {
+    Positions<double> f = Positions<double>::Zero(m.num_nodes(), 3);
+    ASSERT_TRUE(solver.compute(m, f));
+    EXPECT_EQ(solver.candidates(), 10000);
+    EXPECT_EQ(solver.narrow_tests(), 10000);
+    EXPECT_TRUE(solver.overflowed());  // (the contact list holds 4,096; all forces applied)
+    EXPECT_EQ(solver.pair_list_rebuilds(), step + 1);  // no list kept: a scan every step
+    EXPECT_LT(f.colwise().sum().norm(), 1e-9 * f.cwiseAbs().maxCoeff());
+    for (Index i = 0; i < m.num_nodes(); ++i) EXPECT_GT(f.row(i).norm(), 0.0) << i;
+  }
 }
 
 // The onset of the contact law (PenaltyContact::onset): without it the plain penalty; with it

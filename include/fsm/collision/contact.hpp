@@ -136,8 +136,9 @@ struct ContactOptions {
   bool spatial_hash{true};
   /// Part contacts keep a Verlet list of candidate pairs within reach plus this skin (m) and
   /// rescan only once two regions' largest moves since the list was built add up to more than
-  /// the skin (or, for regions whose spheres were farther apart than that, than their gap); with
-  /// more than 32 regions, once some sphere moved more than half the skin. 0 rescans every step.
+  /// the skin (or, for two regions whose boxes of sphere centres were farther apart than their
+  /// largest radii plus the skin, more than that gap less those radii); with more than 32 regions,
+  /// once some sphere moved more than half the skin. 0 rescans every step.
   Scalar verlet_skin{Scalar(0.002)};
 };
 
@@ -173,7 +174,8 @@ class ContactSolver {
       : ContactSolver(model, options) {
     forces.reserve_contacts(m_options.max_contacts);
   }
-  /// @brief Re-reads the model (after adding nodes or links, or changing radii).
+  /// @brief Re-reads the model (after adding nodes, links or regions, or changing radii, rest
+  /// positions or the spheres' regions: the part-contact list keeps each pair's threshold).
   void refresh(const SphereModel<Scalar>& model);
 
   /// @brief Adds an instrument (fsm::Error for a bad shape); returns its index.
@@ -226,7 +228,9 @@ class ContactSolver {
     return m_wrenches.at(std::size_t(i));
   }
 
-  /// @brief Work counters of the last compute(): candidate pairs from the hash, narrow-phase tests.
+  /// @brief Work counters of the last compute(): candidates (spheres an instrument's box reached,
+  /// part-contact pairs in the list) and narrow-phase tests (spheres tested against an
+  /// instrument's shape, pairs closer than their contact threshold).
   [[nodiscard]] Index candidates() const noexcept { return m_candidates; }
   [[nodiscard]] Index narrow_tests() const noexcept { return m_narrow_tests; }
   /// @brief How many times the part-contact pair list was rebuilt since construction.

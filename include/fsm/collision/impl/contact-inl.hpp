@@ -568,7 +568,7 @@ bool ContactSolver<Scalar>::region_pairs(Index a, Index b) const noexcept {
 template <typename Scalar>
 void ContactSolver<Scalar>::set_region_thresholds(const SphereModel<Scalar>& model) noexcept {
   const std::size_t R = m_region_move.size();
-  if (R == 0) return;
+  if (R == 0 || model.num_regions() != Index(R)) return;  // (list_holds then uses one bound)
   const auto x = model.positions();
   const auto region = model.node_regions();
   const Scalar inf = std::numeric_limits<Scalar>::infinity();
@@ -600,33 +600,41 @@ void ContactSolver<Scalar>::set_region_thresholds(const SphereModel<Scalar>& mod
 // since the build add up to more than that. The moves are bounded per region: the tissue an
 // instrument pushes does not make chains elsewhere rescan, and two regions far apart may move
 // that far before either's spheres could meet. (Many regions: one bound for all, twice the
-// largest move against the skin.) A NaN position does not count: such a state is never stepped.
+// largest move against the skin.) A NaN move rebuilds (a state that Simulation never steps).
 template <typename Scalar>
 bool ContactSolver<Scalar>::list_holds(const SphereModel<Scalar>& model) noexcept {
   const auto x = model.positions();
+  const Scalar* xp = x.data();
+  const Scalar* lp = m_list_x.data();
+  auto moved2 = [&](Index q) {
+    const std::ptrdiff_t k = 3 * std::ptrdiff_t(q);
+    const Scalar dx = xp[k] - lp[k], dy = xp[k + 1] - lp[k + 1], dz = xp[k + 2] - lp[k + 2];
+    return dx * dx + dy * dy + dz * dz;
+  };
   const std::size_t R = m_region_move.size();
-  if (R == 0) {
+  // One bound for all: many regions, or regions added since refresh() (not sized for them).
+  if (R == 0 || model.num_regions() != Index(R)) {
     const Scalar limit = Scalar(0.25) * m_options.verlet_skin * m_options.verlet_skin;
     for (Index q = 0; q < model.num_nodes(); ++q)
-      if ((x.row(q) - m_list_x.row(q)).squaredNorm() > limit) return false;
+      if (!(moved2(q) <= limit)) return false;  // (a NaN move rebuilds)
     return true;
   }
   std::fill(m_region_move.begin(), m_region_move.end(), Scalar(0));
   const auto region = model.node_regions();
-  const Scalar* xp = x.data();
-  const Scalar* lp = m_list_x.data();
+  bool nan = false;
   // (A region's nodes are usually consecutive: its largest move is kept in a register.)
   for (Index q = 0; q < model.num_nodes();) {
     const Index r = region[q];
     Scalar m = 0;
     for (; q < model.num_nodes() && region[q] == r; ++q) {
-      const std::ptrdiff_t k = 3 * std::ptrdiff_t(q);
-      const Scalar dx = xp[k] - lp[k], dy = xp[k + 1] - lp[k + 1], dz = xp[k + 2] - lp[k + 2];
-      m = std::max(m, dx * dx + dy * dy + dz * dz);
+      const Scalar d2 = moved2(q);
+      nan = nan || std::isnan(d2);
+      m = std::max(m, d2);
     }
     Scalar& M = m_region_move[std::size_t(r)];
     M = std::max(M, m);
   }
+  if (nan) return false;  // a NaN move rebuilds, as in the one-bound rule
   for (Scalar& m : m_region_move) m = std::sqrt(m);
   for (std::size_t a = 0; a < R; ++a)
     for (std::size_t b = a; b < R; ++b)
