@@ -331,7 +331,8 @@ TEST(ContactSolver, PartContactListMatchesARescanAsRegionsMove) {
 
 // Regions added, and spheres moved into them, after the solver was sized (without refresh()):
 // the per-region arrays do not cover them, so the list falls back to the one bound for all (no
-// write past their end, which ASan would report), and still finds what a rescan finds.
+// write past their end, which ASan would report), and still finds what a rescan finds. The same
+// for a region index that is no region's.
 TEST(ContactSolver, RegionsAddedAfterRefreshFallBackToOneBound) {
   std::mt19937 rng(4);
   SphereModel<double> m = random_spheres(rng, 150);
@@ -355,6 +356,18 @@ TEST(ContactSolver, RegionsAddedAfterRefreshFallBackToOneBound) {
   }
   EXPECT_GT(a.pair_list_rebuilds(), 1);
   EXPECT_LT(a.pair_list_rebuilds(), 50);
+  // A sphere whose region index is no region's (written through the map, never validated): the
+  // list does not index its arrays by it (ASan, which runs this test, would report the write), and
+  // its next rebuild, here at once, finds what a rescan finds.
+  m.node_regions()[0] = m.num_regions() + 5;
+  m.positions().row(0) += Eigen::RowVector3d(0.002, 0, 0);  // more than half the skin: a rebuild
+  for (int step = 0; step < 5; ++step) {
+    for (int c = 0; c < 3; ++c) m.positions()(0, c) += jiggle(rng);
+    Positions<double> fa = Positions<double>::Zero(m.num_nodes(), 3), fb = fa;
+    ASSERT_TRUE(a.compute(m, fa));
+    ASSERT_TRUE(b.compute(m, fb));
+    ASSERT_EQ(a.num_contacts(), b.num_contacts()) << step;
+  }
 }
 
 // More candidate pairs than the list has room for (32 a sphere): each step scans instead and

@@ -578,6 +578,7 @@ void ContactSolver<Scalar>::set_region_thresholds(const SphereModel<Scalar>& mod
   }
   for (Index q = 0; q < model.num_nodes(); ++q) {
     const std::size_t r = std::size_t(region[q]);
+    if (r >= R) continue;  // (not a region: list_holds then uses one bound)
     m_region_box[2 * r] = m_region_box[2 * r].cwiseMin(x.row(q).transpose());
     m_region_box[2 * r + 1] = m_region_box[2 * r + 1].cwiseMax(x.row(q).transpose());
   }
@@ -612,19 +613,22 @@ bool ContactSolver<Scalar>::list_holds(const SphereModel<Scalar>& model) noexcep
     return dx * dx + dy * dy + dz * dz;
   };
   const std::size_t R = m_region_move.size();
-  // One bound for all: many regions, or regions added since refresh() (not sized for them).
-  if (R == 0 || model.num_regions() != Index(R)) {
+  // One bound for all: many regions, or regions added since refresh() (not sized for them), or a
+  // sphere whose region index is not a region's.
+  auto one_bound = [&] {
     const Scalar limit = Scalar(0.25) * m_options.verlet_skin * m_options.verlet_skin;
     for (Index q = 0; q < model.num_nodes(); ++q)
       if (!(moved2(q) <= limit)) return false;  // (a NaN move rebuilds)
     return true;
-  }
+  };
+  if (R == 0 || model.num_regions() != Index(R)) return one_bound();
   std::fill(m_region_move.begin(), m_region_move.end(), Scalar(0));
   const auto region = model.node_regions();
   bool nan = false;
   // (A region's nodes are usually consecutive: its largest move is kept in a register.)
   for (Index q = 0; q < model.num_nodes();) {
     const Index r = region[q];
+    if (r < 0 || std::size_t(r) >= R) return one_bound();
     Scalar m = 0;
     for (; q < model.num_nodes() && region[q] == r; ++q) {
       const Scalar d2 = moved2(q);
