@@ -255,8 +255,11 @@ class ContactSolver {
     Scalar threshold;
   };
   Scalar pair_threshold(const SphereModel<Scalar>& model, Index i, Index j) const noexcept;
+  // The contact of a pair whose spheres (x_j - x_i = d, |d|^2 = dist2) are closer than its
+  // threshold.
   template <typename Emit>
-  void part_contact(const SphereModel<Scalar>& model, const PartPair& pair, Emit&& emit) noexcept;
+  void part_contact(const SphereModel<Scalar>& model, const PartPair& pair,
+                    const Vector3<Scalar>& d, Scalar dist2, Emit&& emit) noexcept;
   // Finds every contact at the model's state and calls emit(PenaltyContact) for each (its
   // `force` the force at that state); records and wrenches follow the emitted forces.
   template <typename Emit>

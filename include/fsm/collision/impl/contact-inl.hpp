@@ -524,6 +524,14 @@ void ContactSolver<Scalar>::detect(const SphereModel<Scalar>& model, Emit&& emit
   // Parts against parts (and folding within a part, when asked).
   if (!m_options.part_contact && !m_options.self_contact) return;
   const Scalar skin = m_options.verlet_skin;
+  // A pair's distance test, and its contact when its spheres are closer than its threshold.
+  auto test = [&](const PartPair& p) {
+    const Scalar* a = xp + 3 * std::ptrdiff_t(p.i);
+    const Scalar* b = xp + 3 * std::ptrdiff_t(p.j);
+    const Vector3<Scalar> d(b[0] - a[0], b[1] - a[1], b[2] - a[2]);
+    const Scalar dist2 = d.squaredNorm();
+    if (dist2 < p.threshold * p.threshold) part_contact(model, p, d, dist2, emit);
+  };
   bool rebuild = !m_list_valid || !(skin > 0) || !list_holds(model);
   if (rebuild) {
     m_pairs.clear();
@@ -541,19 +549,13 @@ void ContactSolver<Scalar>::detect(const SphereModel<Scalar>& model, Emit&& emit
     if (!fits) {  // rare: more candidate pairs than reserved; handle this step by scanning
       for_each_part_pair(model, Scalar(0), [&](Index i, Index j) {
         ++m_candidates;
-        part_contact(model, {i, j, pair_threshold(model, i, j)}, emit);
+        test({i, j, pair_threshold(model, i, j)});
       });
       return;
     }
   }
-  // The pairs' distance test in one tight pass; part_contact() for those within their threshold.
   m_candidates += Index(m_pairs.size());
-  for (const PartPair& p : m_pairs) {
-    const Scalar* a = xp + 3 * std::ptrdiff_t(p.i);
-    const Scalar* b = xp + 3 * std::ptrdiff_t(p.j);
-    const Scalar dx = b[0] - a[0], dy = b[1] - a[1], dz = b[2] - a[2];
-    if (dx * dx + dy * dy + dz * dz < p.threshold * p.threshold) part_contact(model, p, emit);
-  }
+  for (const PartPair& p : m_pairs) test(p);
 }
 
 // Whether part contact can pair regions a and b (a == b: within one region, self contact).
@@ -568,7 +570,7 @@ bool ContactSolver<Scalar>::region_pairs(Index a, Index b) const noexcept {
 template <typename Scalar>
 void ContactSolver<Scalar>::set_region_thresholds(const SphereModel<Scalar>& model) noexcept {
   const std::size_t R = m_region_move.size();
-  if (R == 0 || model.num_regions() != Index(R)) return;  // (list_holds then uses one bound)
+  if (R == 0) return;
   const auto x = model.positions();
   const auto region = model.node_regions();
   const Scalar inf = std::numeric_limits<Scalar>::infinity();
@@ -578,13 +580,13 @@ void ContactSolver<Scalar>::set_region_thresholds(const SphereModel<Scalar>& mod
   }
   for (Index q = 0; q < model.num_nodes(); ++q) {
     const std::size_t r = std::size_t(region[q]);
-    if (r >= R) continue;  // (not a region: list_holds then uses one bound)
+    if (r >= R) continue;  // (a region refresh() did not see: list_holds then uses one bound)
     m_region_box[2 * r] = m_region_box[2 * r].cwiseMin(x.row(q).transpose());
     m_region_box[2 * r + 1] = m_region_box[2 * r + 1].cwiseMax(x.row(q).transpose());
   }
   const Scalar skin = m_options.verlet_skin;
   for (std::size_t a = 0; a < R; ++a)
-    for (std::size_t b = 0; b < R; ++b) {
+    for (std::size_t b = a; b < R; ++b) {  // (list_holds reads b >= a)
       // The distance between the boxes (0 when they overlap); an empty region's box is
       // inverted and gives infinity: it has no sphere to pair.
       const Vector3<Scalar> gap = (m_region_box[2 * b] - m_region_box[2 * a + 1])
@@ -613,15 +615,15 @@ bool ContactSolver<Scalar>::list_holds(const SphereModel<Scalar>& model) noexcep
     return dx * dx + dy * dy + dz * dz;
   };
   const std::size_t R = m_region_move.size();
-  // One bound for all: many regions, or regions added since refresh() (not sized for them), or a
-  // sphere whose region index is not a region's.
+  // One bound for all: many regions, or a sphere in a region refresh() did not see (added since,
+  // or an index that names no region), which the per-region arrays do not cover.
   auto one_bound = [&] {
     const Scalar limit = Scalar(0.25) * m_options.verlet_skin * m_options.verlet_skin;
     for (Index q = 0; q < model.num_nodes(); ++q)
       if (!(moved2(q) <= limit)) return false;  // (a NaN move rebuilds)
     return true;
   };
-  if (R == 0 || model.num_regions() != Index(R)) return one_bound();
+  if (R == 0) return one_bound();
   std::fill(m_region_move.begin(), m_region_move.end(), Scalar(0));
   const auto region = model.node_regions();
   bool nan = false;
@@ -693,17 +695,15 @@ Scalar ContactSolver<Scalar>::pair_threshold(const SphereModel<Scalar>& model, I
 template <typename Scalar>
 template <typename Emit>
 void ContactSolver<Scalar>::part_contact(const SphereModel<Scalar>& model, const PartPair& pair,
+                                         const Vector3<Scalar>& d, Scalar dist2,
                                          Emit&& emit) noexcept {
+  ++m_narrow_tests;
   const Index i = pair.i, j = pair.j;
   const auto x = model.positions();
   const auto rest = model.rest_positions();
   const auto radius = model.radii();
   const auto mass = model.masses();
   const Scalar threshold = pair.threshold;
-  const Vector3<Scalar> d = (x.row(j) - x.row(i)).transpose();
-  const Scalar dist2 = d.squaredNorm();
-  if (!(dist2 < threshold * threshold)) return;
-  ++m_narrow_tests;
   const Scalar dist = std::sqrt(dist2);
   const Scalar depth = threshold - dist;
   if (!(depth > 0)) return;
