@@ -3,6 +3,7 @@
 #include "fsm/builder/metric_field.hpp"
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -50,22 +51,23 @@ class AnisotropicMetric final : public MetricField {
 
 class GradedMetric final : public MetricField {
  public:
-  GradedMetric(double lo, double hi, const Eigen::Vector3d& c, double d)
-      : m_lo(lo), m_hi(hi), m_c(c), m_d(d) {}
+  GradedMetric(double lo, double hi, const Eigen::Vector3d& c, double d, double r0)
+      : m_lo(lo), m_hi(hi), m_c(c), m_d(d), m_r0(r0) {}
   Eigen::Matrix3d metric(const Eigen::Vector3d& x) const override {
-    const double t = std::min(1.0, (x - m_c).norm() / m_d);
+    const double t = std::clamp(((x - m_c).norm() - m_r0) / m_d, 0.0, 1.0);
     const double h = m_lo + (m_hi - m_lo) * t;
     return Eigen::Matrix3d::Identity() / (h * h);
   }
   bool is_constant() const noexcept override { return false; }
   std::string describe() const override {
-    return "graded h = " + mm(m_lo) + " to " + mm(m_hi) + " over " + mm(m_d);
+    return "graded h = " + mm(m_lo) + (m_r0 > 0 ? " within " + mm(m_r0) : std::string()) + " to " +
+           mm(m_hi) + " over " + mm(m_d);
   }
 
  private:
   double m_lo, m_hi;
   Eigen::Vector3d m_c;
-  double m_d;
+  double m_d, m_r0;
 };
 
 void require_size(double h, const char* what) {
@@ -99,12 +101,15 @@ std::shared_ptr<const MetricField> anisotropic_metric(const Eigen::Vector3d& siz
 }
 
 std::shared_ptr<const MetricField> graded_metric(double size_min, double size_max,
-                                                 const Eigen::Vector3d& centre, double distance) {
+                                                 const Eigen::Vector3d& centre, double distance,
+                                                 double radius) {
   require_size(size_min, "size_min");
   require_size(size_max, "size_max");
   require_size(distance, "distance");
   if (!centre.allFinite()) throw Error("", "metric", "graded centre is not finite");
-  return std::make_shared<GradedMetric>(size_min, size_max, centre, distance);
+  if (!(std::isfinite(radius) && radius >= 0))
+    throw Error("", "metric", "graded radius must be non-negative and finite");
+  return std::make_shared<GradedMetric>(size_min, size_max, centre, distance, radius);
 }
 
 double tetrahedron_quality(const Eigen::Vector3d& a, const Eigen::Vector3d& b,

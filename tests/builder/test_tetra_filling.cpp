@@ -2,6 +2,8 @@
 // an anisotropic metric honoured exactly, a graded metric honoured in size.
 
 #include <gtest/gtest.h>
+#include <algorithm>
+#include <cmath>
 
 #include "fsm/builder/fillings.hpp"
 #include "fsm/builder/metric_field.hpp"
@@ -83,6 +85,27 @@ TEST(Metric, BadParametersAreErrors) {
   flat.col(2) = flat.col(1);
   EXPECT_THROW(anisotropic_metric(V(1, 1, 1), flat), Error);
   EXPECT_THROW(graded_metric(0.001, 0.002, V(0, 0, 0), 0.0), Error);
+  EXPECT_THROW(graded_metric(0.001, 0.002, V(0, 0, 0), 0.01, -0.001), Error);
+  EXPECT_THROW(graded_metric(0.001, 0.002, V(0, 0, 0), 0.01, std::nan("")), Error);
+}
+
+// The graded size: h_min within the plateau radius of the centre, then linear over the distance,
+// h_max beyond (the formula of graded_metric), in every direction; no plateau by default.
+TEST(Metric, GradedSizeHasItsPlateauThenGrows) {
+  const V c(0.01, -0.02, 0.003);
+  const auto plain = graded_metric(0.001, 0.004, c, 0.006);
+  const auto plateau = graded_metric(0.001, 0.004, c, 0.006, 0.003);
+  for (const V dir : {V(1, 0, 0), V(0, -1, 0), V(1, 1, 1).normalized()}) {
+    for (const double r : {0.0, 0.001, 0.003, 0.0045, 0.006, 0.009, 0.02}) {
+      const V x = c + r * dir;
+      EXPECT_NEAR(plain->size(x), 0.001 + 0.003 * std::min(1.0, r / 0.006), 1e-12) << r;
+      EXPECT_NEAR(plateau->size(x), 0.001 + 0.003 * std::clamp((r - 0.003) / 0.006, 0.0, 1.0),
+                  1e-12)
+          << r;
+    }
+  }
+  EXPECT_NE(plateau->describe().find("within 3 mm"), std::string::npos) << plateau->describe();
+  EXPECT_EQ(plain->describe().find("within"), std::string::npos) << plain->describe();
 }
 
 // A ball of radius 2 cm with spheres of 5 mm: the filling covers the ball (every tetrahedron's

@@ -1,0 +1,152 @@
+#!/usr/bin/python3
+"""Flat-ended tools and the ball on the cylindrical specimen filled with spheres graded toward
+the tool, against the converged axisymmetric reference (docs/validation.md, "Spheres fine where
+the tool works").
+
+    /usr/bin/python3 validation/graded_tools.py --indent build/validation/fsm-indent \
+        [--work /tmp/graded_tools] [--sizes 0.8 0.7 0.6 0.5 0.45 0.4] [--reuse]
+
+The specimen of continuum_sweep.py's disc studies (radius 10 mm, height 10 mm, bonded bottom) is
+filled under the scene's graded metric: size_min h_0 within RADIUS (4 mm: the tools' 3 mm radius
+and 1 mm more) of the top's centre, growing linearly to SIZE_MAX (2.5 mm) over DISTANCE (4 mm).
+One mesh per h_0 serves every tool; fsm-indent presses each tool into its centre at 150 mm/min
+with the default contact (sphere centres, ContactOptions defaults), E = 13.15 kPa and nu as
+given, no factor, as in continuum_sweep.py. Each run is scored by continuum_sweep.score: the
+largest relative force error from 0.5 to 2.5 mm (the issue's 5 % target), the force at 1.25 mm
+against the reference's, the largest displacement difference at equal force.
+
+Writes validation/results/graded_tools.json and docs/img/validation_graded_tools.png (the largest
+force error against the sphere count, graded against the uniform fillings of
+results/continuum_sweep.json).
+"""
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+sys.path.insert(0, HERE)
+import axisym  # noqa: E402
+import continuum_sweep  # noqa: E402
+import scenes  # noqa: E402
+import validate  # noqa: E402
+
+RADIUS, DISTANCE, SIZE_MAX = 4.0, 4.0, 2.5  # mm
+# (case, nu): the tools with a converged reference (the sharp rim has none at nu = 0.49).
+STUDIES = [("disc_rounded_cylinder", 0.49), ("disc_rounded_cylinder", 0.45),
+           ("disc_cylinder", 0.45), ("disc_sphere", 0.49), ("disc_sphere", 0.45)]
+LAWS = ("continuum", "links")  # the paper's link network beside the continuum law
+
+
+def graded_scene(work, disc, h0):
+    """The specimen's scene graded from h0 (mm) at the top's centre."""
+    path = os.path.join(work, f"graded_h{h0:g}.json")
+    scenes.write_scene(path, disc, "tetrahedral", SIZE_MAX, scenes.LINEAR,
+                       graded=(h0, DISTANCE, RADIUS))
+    return path
+
+
+def run(a, scene, h0, case, law, nu):
+    """One fsm-indent run (reused with --reuse): (curve path, its JSON summary)."""
+    tag = f"h{h0:g}_{case}_{law}" + (f"_nu{nu:g}" if law != "links" else "")
+    curve, summary = (os.path.join(a.work, tag + x) for x in (".csv", ".json"))
+    if not (a.reuse and os.path.exists(curve) and os.path.exists(summary)):
+        p = subprocess.run([a.indent, scene, "--case", axisym.indenter_case(case),
+                            *continuum_sweep.indent_flags(law), "--nu", str(nu),
+                            "--speed", "150", "--out", curve], capture_output=True, text=True)
+        if p.returncode not in (0, 3):
+            sys.exit(f"fsm-indent failed: {p.stderr}")
+        with open(summary, "w") as f:
+            f.write(p.stdout)
+    with open(summary) as f:
+        return curve, json.load(f)
+
+
+def chart(rows, uniform):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    names = {"disc_rounded_cylinder": "rounded rim", "disc_cylinder": "sharp rim",
+             "disc_sphere": "ball"}
+    fig, grid = plt.subplots(2, 3, figsize=(12, 7), sharey=True)
+    axes = grid.ravel()
+    axes[-1].axis("off")
+    for ax, (case, nu) in zip(axes, STUDIES):
+        for src, law, style, label in (
+                (uniform, "continuum", "o--", "continuum law, uniform"),
+                (rows, "continuum", "s-", "continuum law, graded toward the tool"),
+                (rows, "links", "^:", "paper's link network, graded")):
+            pts = sorted((x["spheres"], 100 * x["max_rel_force_error_0p5_2p5"]) for x in src
+                         if x["case"] == case and x["nu"] == nu and x["law"] == law)
+            if pts:
+                ax.plot(*zip(*pts), style, label=label, color="0.55" if law == "links" else None)
+        ax.axhline(5, color="k", lw=0.8, ls=":")
+        ax.axvline(2000, color="0.6", lw=0.8, ls=":")
+        ax.set_xscale("log")
+        ax.set_title(f"{names[case]}, nu = {nu:g}")
+        ax.set_xlabel("spheres")
+    for ax in grid[:, 0]:
+        ax.set_ylabel("largest force error, 0.5-2.5 mm (%)")
+    axes[-1].legend(*axes[0].get_legend_handles_labels(), loc="center")
+    fig.suptitle("Cylindrical specimen, continuum law, vertex contact: uniform fillings and fillings "
+                 "graded toward the tool\n(dotted: the 5 % target and 2,000 spheres)", fontsize=10)
+    fig.tight_layout()
+    out = os.path.join(ROOT, "docs", "img", "validation_graded_tools.png")
+    fig.savefig(out, dpi=110)
+    print(f"wrote {out}")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--indent", required=True)
+    ap.add_argument("--work", default="/tmp/graded_tools")
+    ap.add_argument("--sizes", type=float, nargs="+", default=[0.8, 0.7, 0.6, 0.5, 0.45, 0.4],
+                    help="h_0 (mm) of each filling")
+    ap.add_argument("--reuse", action="store_true", help="keep runs already in --work")
+    ap.add_argument("--charts-only", action="store_true",
+                    help="redraw the chart from results/graded_tools.json")
+    a = ap.parse_args()
+    result = os.path.join(HERE, "results", "graded_tools.json")
+    with open(os.path.join(HERE, "results", "continuum_sweep.json")) as f:
+        uniform = [x for x in json.load(f)["runs"] if x["case"].startswith("disc_") and "failed" not in x]
+    if a.charts_only:
+        with open(result) as f:
+            chart(json.load(f)["runs"], uniform)
+        return
+    os.makedirs(a.work, exist_ok=True)
+    disc = os.path.join(a.work, "disc.off")
+    scenes.write_disc_off(disc)
+    rows = []
+    for h0 in a.sizes:
+        scene = graded_scene(a.work, disc, h0)
+        links = {}  # the link network has no Poisson's ratio: one run per tool, scored at each nu
+        for case, nu in STUDIES:
+            for law in LAWS:
+                if law == "links":
+                    if case not in links:
+                        links[case] = run(a, scene, h0, case, law, nu)
+                    curve, s = links[case]
+                else:
+                    curve, s = run(a, scene, h0, case, law, nu)
+                d, F = validate.read_curve(curve)
+                row = {"size_min_mm": h0, "radius_mm": RADIUS, "distance_mm": DISTANCE,
+                       "size_max_mm": SIZE_MAX, "case": case, "nu": nu, "law": law,
+                       "spheres": s["spheres"], "tetrahedra": s.get("tetrahedra"),
+                       **continuum_sweep.score(d, F, case, nu),
+                       "median_step_us": s["median_step_us"], "mean_iterations": s["mean_iterations"],
+                       "diverged": s["diverged"], "inverted_steps": s["inverted_steps"],
+                       "max_penetration_m": s["max_penetration_m"],
+                       "max_face_penetration_m": s.get("max_face_penetration_m"), "curve": curve}
+                rows.append(row)
+                print(json.dumps(row), flush=True)
+    with open(result, "w") as f:
+        json.dump({"command": "validation/graded_tools.py " + " ".join(sys.argv[1:]),
+                   "date": time.strftime("%Y-%m-%d"), "runs": rows}, f, indent=1)
+    chart(rows, uniform)
+
+
+if __name__ == "__main__":
+    main()
