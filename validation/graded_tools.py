@@ -12,8 +12,9 @@ and 1 mm more) of the top's centre, growing linearly to SIZE_MAX (2.5 mm) over D
 One mesh per h_0 serves every tool; fsm-indent presses each tool into its centre at 150 mm/min
 with the default contact (sphere centres, ContactOptions defaults), E = 13.15 kPa and nu as
 given, no factor, as in continuum_sweep.py. Each run is scored by continuum_sweep.score: the
-largest relative force error from 0.5 to 2.5 mm (the issue's 5 % target), the force at 1.25 mm
-against the reference's, the largest displacement difference at equal force.
+largest relative force error from 0.5 to 2.5 mm (the issue's 5 % target) and from 1.25 to 2.5 mm
+(where the sharp rim's reference is good to 2 %: at 0.5-1 mm its own uncertainty is up to 15 %),
+the force at 1.25 mm against the reference's, the largest displacement difference at equal force.
 
 Writes validation/results/graded_tools.json and docs/img/validation_graded_tools.png (the largest
 force error against the sphere count, graded against the uniform fillings of
@@ -136,6 +137,10 @@ def main():
                        "size_max_mm": SIZE_MAX, "case": case, "nu": nu, "law": law,
                        "spheres": s["spheres"], "tetrahedra": s.get("tetrahedra"),
                        **continuum_sweep.score(d, F, case, nu),
+                       # Past 1.25 mm only: where the sharp rim's reference is good to 2 % (it is
+                       # uncertain by up to 15 % at 0.5-1 mm: converged_disc_cylinder_nu0.45.csv).
+                       "max_rel_force_error_1p25_2p5": validate.max_force_error(
+                           d, F, *validate.converged_reference(case, nu), lo=1.25, hi=2.5),
                        "median_step_us": s["median_step_us"], "mean_iterations": s["mean_iterations"],
                        "diverged": s["diverged"], "inverted_steps": s["inverted_steps"],
                        "max_penetration_m": s["max_penetration_m"],
