@@ -18,9 +18,9 @@ centre ended more than MAX_PENETRATION_M inside it or a step diverged; before th
 1.25 mm spacing). Last, it presses the same rounded cylinder into the cylindrical specimen
 (validation/axisym.py), where it has a converged reference, and fails if the largest force error
 from 0.5 to 2.5 mm exceeds the stored figure by more than 5 points; and into the same specimen
-filled with spheres graded toward the tool (h_0 = 0.6 mm within 4 mm of the top's centre,
-graded_tools.py), where it fails if that error exceeds its stored figure (5.9 %) by more than 3
-points: the 5 % target's case, which a regression of the contact or the law would move.
+filled with spheres graded toward the tool (h_0 = 0.5 mm within 4 mm of the top's centre,
+1,431 spheres: graded_tools.py), where that error is 4.2 %, within the issue's 5 % target: it fails
+past 5.2 % (1 point more), or if a step diverged or an element inverted.
 """
 import argparse
 import json
@@ -123,9 +123,10 @@ def main():
     if not err <= want + 0.05 or not s["max_penetration_m"] <= MAX_PENETRATION_M or s["diverged"]:
         failures.append(f"rounded cylinder on the specimen: force error {100 * err:.1f} %, "
                         f"{1e6 * s['max_penetration_m']:.1f} um inside, {s['diverged']} diverged")
-    # The same tool on the specimen graded toward it (graded_tools.py's filling at h_0 = 0.6 mm).
+    # The same tool on the specimen graded toward it (graded_tools.py's filling at h_0 = 0.5 mm).
     import graded_tools  # noqa: E402
     g = stored["disc_rounded_cylinder_graded"]
+    dr, Fr = validate.converged_reference("disc_rounded_cylinder", 0.49)
     graded_scene = graded_tools.graded_scene(a.work, disc, g["size_min_mm"])
     out = os.path.join(a.work, "graded_disc_rounded_cylinder_continuum.csv")
     r = subprocess.run([a.indent, graded_scene, "--case", "rounded_cylinder", "--speed", "150",
@@ -139,11 +140,14 @@ def main():
     want = g["max_rel_force_error"]
     print(f"rounded cylinder on the specimen graded toward it (continuum, nu 0.49, {s['spheres']} "
           f"spheres): largest force error {100 * err:.1f} % (stored {100 * want:.1f} %, limit "
-          f"{100 * (want + 0.03):.1f} %), deepest sphere centre inside it "
-          f"{1e6 * s['max_penetration_m']:.2f} um, {s['diverged']} diverged")
-    if not err <= want + 0.03 or not s["max_penetration_m"] <= MAX_PENETRATION_M or s["diverged"]:
+          f"{100 * (want + 0.01):.1f} %), deepest sphere centre inside it "
+          f"{1e6 * s['max_penetration_m']:.2f} um, {s['diverged']} diverged, "
+          f"{s['inverted_steps']} inverted")
+    if (not err <= want + 0.01 or not s["max_penetration_m"] <= MAX_PENETRATION_M or s["diverged"]
+            or s["inverted_steps"]):
         failures.append(f"rounded cylinder on the graded specimen: force error {100 * err:.1f} %, "
-                        f"{1e6 * s['max_penetration_m']:.1f} um inside, {s['diverged']} diverged")
+                        f"{1e6 * s['max_penetration_m']:.1f} um inside, {s['diverged']} diverged, "
+                        f"{s['inverted_steps']} inverted")
     limit = stored["compression"]["max_disp_diff_mm"] + 0.05
     m, _ = run("compression", "links")
     print(f"negative control, the paper's link network: {m['max_disp_diff_mm']:.3f} mm")

@@ -96,7 +96,7 @@ def write_scene(path, mesh, topology="tetrahedral", radius=1.5, material=None, g
         part["metric"] = {"type": "graded", "size_min": size_min, "size_max": radius,
                           "centre": [W / 2, W / 2, H], "distance": distance}
         if plateau:
-            part["metric"]["radius"] = plateau[0]
+            part["metric"]["plateau_radius"] = plateau[0]
     if topology == "grid":
         s = grid_spacing or 2 * radius
         part["grid"] = {"neighbours": neighbours, "spacing": s}

@@ -102,14 +102,14 @@ std::shared_ptr<const MetricField> anisotropic_metric(const Eigen::Vector3d& siz
 
 std::shared_ptr<const MetricField> graded_metric(double size_min, double size_max,
                                                  const Eigen::Vector3d& centre, double distance,
-                                                 double radius) {
+                                                 double plateau_radius) {
   require_size(size_min, "size_min");
   require_size(size_max, "size_max");
   require_size(distance, "distance");
   if (!centre.allFinite()) throw Error("", "metric", "graded centre is not finite");
-  if (!(std::isfinite(radius) && radius >= 0))
-    throw Error("", "metric", "graded radius must be non-negative and finite");
-  return std::make_shared<GradedMetric>(size_min, size_max, centre, distance, radius);
+  if (!(std::isfinite(plateau_radius) && plateau_radius >= 0))
+    throw Error("", "metric", "graded plateau_radius must be non-negative and finite");
+  return std::make_shared<GradedMetric>(size_min, size_max, centre, distance, plateau_radius);
 }
 
 double tetrahedron_quality(const Eigen::Vector3d& a, const Eigen::Vector3d& b,

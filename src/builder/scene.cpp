@@ -153,13 +153,13 @@ void read_topology_options(const Reader& r, const json& p, double units, PartSpe
         r.fail(where, e.reason());
       }
     } else if (type == "graded") {
-      r.keys(m, {"type", "size_min", "size_max", "centre", "distance", "radius"},
+      r.keys(m, {"type", "size_min", "size_max", "centre", "distance", "plateau_radius"},
              where + " metric");
       try {
         part.metric = graded_metric(
             r.number(m, "size_min", where) * units, r.number(m, "size_max", where) * units,
             r.vec3(m, "centre", where) * units, r.number(m, "distance", where) * units,
-            r.number_or(m, "radius", 0.0, where) * units);
+            r.number_or(m, "plateau_radius", 0.0, where) * units);
       } catch (const Error& e) {
         r.fail(where, e.reason());
       }

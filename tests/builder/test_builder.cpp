@@ -189,6 +189,25 @@ TEST_F(Scenes, SameSceneGivesTheSameBytes) {
   EXPECT_EQ(stored["parts"][1]["meshes"][0]["file"], "capsule.obj");
 }
 
+// The graded metric's plateau radius is a length in the scene's units, like its other lengths;
+// a negative one is refused naming the part.
+TEST_F(Scenes, GradedMetricPlateauIsInTheScenesUnits) {
+  const std::string graded =
+      R"(, "metric": {"type": "graded", "size_min": 0.1, "size_max": 0.5, "centre": [1, 0, 0],
+          "distance": 0.8, "plateau_radius": 0.4})";
+  const Scene s = load_scene(scene(ball(graded), ""));  // "units": "cm"
+  ASSERT_EQ(s.parts.size(), 1u);
+  const auto& metric = *s.parts[0].metric;
+  EXPECT_NE(metric.describe().find("within 4 mm"), std::string::npos) << metric.describe();
+  EXPECT_NEAR(metric.size(Eigen::Vector3d(0.01 + 0.004, 0, 0)), 0.001, 1e-12);
+  EXPECT_NEAR(metric.size(Eigen::Vector3d(0.01 + 0.008, 0, 0)), 0.001 + 0.004 * 0.5, 1e-12);
+  EXPECT_NEAR(metric.size(Eigen::Vector3d(0.01 - 0.02, 0, 0)), 0.005, 1e-12);
+  const std::string negative =
+      R"(, "metric": {"type": "graded", "size_min": 0.1, "size_max": 0.5, "centre": [1, 0, 0],
+          "distance": 0.8, "plateau_radius": -0.4})";
+  expect_error(scene(ball(negative), ""), "part 'ball'", "plateau_radius must be non-negative");
+}
+
 TEST_F(Scenes, BadScenesAreNamed) {
   expect_error(
       scene(ball() + "," + tube(),

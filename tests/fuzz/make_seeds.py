@@ -72,7 +72,7 @@ def seeds_scene():
              "material": {"density": 1050, "youngs_modulus": 13150, "viscosity": 10.26,
                           "large_strain_modulus": 68380, "switch_strain": 0.1},
              "metric": {"type": "graded", "size_min": 1, "size_max": 3, "centre": [0, 0, 0],
-                        "distance": 5, "radius": 1},
+                        "distance": 5, "plateau_radius": 1},
              "optimiser": "odt", "repair": {"orient": True}},
             {"name": "tube", "meshes": ["cube.obj", "cube.stl"], "mesh_units": "mm",
              "topology": "axis", "radius": 1,

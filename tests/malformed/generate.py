@@ -359,11 +359,11 @@ def scenes():
                                           "size_max": 0.01, "centre": [10, 10, 5],
                                           "distance": 20})]),
                 "would need about")
-    write_scene("graded_radius_negative.json",
+    write_scene("graded_plateau_radius_negative.json",
                 scene(parts=[part(metric={"type": "graded", "size_min": 2, "size_max": 4,
                                           "centre": [10, 10, 5], "distance": 5,
-                                          "radius": -1})]),
-                "graded radius must be non-negative")
+                                          "plateau_radius": -1})]),
+                "graded plateau_radius must be non-negative")
     write_scene("anisotropic_size_tiny.json",
                 scene(parts=[part(metric={"type": "anisotropic", "sizes": [0.001, 4, 4]})]),
                 "would need about")

@@ -43,13 +43,13 @@ std::shared_ptr<const MetricField> isotropic_metric(double size);
 std::shared_ptr<const MetricField> anisotropic_metric(const Eigen::Vector3d& sizes,
                                                       const Eigen::Matrix3d& axes);
 
-/// @brief An isotropic size graded with distance r from `centre`, h_min within `radius` r_0 of
-/// it: \f$h(r) = h_{min} + (h_{max} - h_{min})\,\mathrm{clamp}((r - r_0) / d, 0, 1)\f$ (m).
-/// fsm::Error for a size or distance that is not positive and finite, a negative radius or a
-/// centre that is not finite.
+/// @brief An isotropic size graded with distance r from `centre`, h_min within `plateau_radius` r_0
+/// of it: \f$h(r) = h_{min} + (h_{max} - h_{min})\,\mathrm{clamp}((r - r_0) / d, 0, 1)\f$ (m).
+/// fsm::Error for a size or distance that is not positive and finite, a plateau radius that is
+/// negative or not finite, or a centre that is not finite.
 std::shared_ptr<const MetricField> graded_metric(double size_min, double size_max,
                                                  const Eigen::Vector3d& centre, double distance,
-                                                 double radius = 0);
+                                                 double plateau_radius = 0);
 
 /// @brief Element quality in a metric (docs/physics.md section 10.3, the scale-invariant form of
 /// eq. 14): \f$Q(K) = \alpha\,(\sum_i \mathbf{e}_i^T\mathbf{M}\mathbf{e}_i)^{3/2} /
