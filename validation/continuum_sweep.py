@@ -76,8 +76,13 @@ BONDED = ("compression", "punch")
 def indent_run(a, scene, case, law, nu, r):
     """(curve path, fsm-indent's JSON summary) of one run at 150 mm/min in a.work (the links have
     no Poisson's ratio: one run, tagged without it); with a.reuse, a run already there is read."""
-    tag = f"{case}_{law.replace('+', '_').replace('/', '_')}_r{r:g}" + (
-        f"_nu{nu:g}" if law != "links" else "")
+    return indent_tagged(a, scene, case, law, nu,
+                         f"{case}_{law.replace('+', '_').replace('/', '_')}_r{r:g}" +
+                         (f"_nu{nu:g}" if law != "links" else ""))
+
+
+def indent_tagged(a, scene, case, law, nu, tag):
+    """indent_run() under a given name: a.work/<tag>.csv and .json."""
     curve, summary = (os.path.join(a.work, tag + x) for x in (".csv", ".json"))
     if not (a.reuse and os.path.exists(curve) and os.path.exists(summary)):
         p = subprocess.run([a.indent, scene, "--case", axisym.indenter_case(case), *indent_flags(law),

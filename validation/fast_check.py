@@ -17,7 +17,8 @@ centre ended more than MAX_PENETRATION_M inside it or a step diverged; before th
 (ContactOptions::detection_margin) spheres under the rim sank 22 um on this block (0.3 mm at
 1.25 mm spacing). Last, it presses the same rounded cylinder into the cylindrical specimen
 (validation/axisym.py), where it has a converged reference, and fails if the largest force error
-from 0.5 to 2.5 mm exceeds the stored figure by more than 5 points; and into the same specimen
+from 0.5 to 2.5 mm exceeds the stored figure by more than 5 points (or a sphere centre sank, a step
+diverged or an element inverted); and into the same specimen
 filled with spheres graded toward the tool (h_0 = 0.5 mm within 4 mm of the top's centre,
 1,431 spheres: graded_tools.py), where that error is 4.2 %, within the issue's 5 % target: it fails
 past 5.2 % (1 point more), or if a step diverged or an element inverted.
@@ -99,55 +100,43 @@ def main():
         failures.append(f"rounded cylinder: {1e6 * s['max_penetration_m']:.1f} um inside, "
                         f"{s['diverged']} diverged")
     # The rounded cylinder again, on the cylindrical specimen, where it has a converged
-    # (axisymmetric) reference: the largest force error from 0.5 to 2.5 mm must stay within 5
-    # points of the stored figure (the vertex contact is 45 % low this coarse; docs/validation.md).
+    # (axisymmetric) reference: the largest force error from 0.5 to 2.5 mm must stay within
+    # `margin` of the stored figure.
+    dr, Fr = validate.converged_reference("disc_rounded_cylinder", 0.49)
+
+    def press_specimen(specimen_scene, what, want, margin, tag):
+        out = os.path.join(a.work, f"{tag}_rounded_cylinder_continuum.csv")
+        r = subprocess.run([a.indent, specimen_scene, "--case", "rounded_cylinder", "--speed",
+                            "150", "--law", "continuum", "--nu", "0.49", "--out", out],
+                           capture_output=True, text=True)
+        if r.returncode != 0:
+            sys.exit(f"fsm-indent failed ({r.returncode}): {r.stderr}")
+        s = json.loads(r.stdout)
+        d, F = validate.read_curve(out)
+        err = validate.max_force_error(d, F, dr, Fr)
+        print(f"rounded cylinder on {what} (continuum, nu 0.49, {s['spheres']} spheres): largest "
+              f"force error {100 * err:.1f} % (stored {100 * want:.1f} %, limit "
+              f"{100 * (want + margin):.1f} %), deepest sphere centre inside it "
+              f"{1e6 * s['max_penetration_m']:.2f} um, {s['diverged']} diverged, "
+              f"{s['inverted_steps']} inverted")
+        if (not err <= want + margin or not s["max_penetration_m"] <= MAX_PENETRATION_M
+                or s["diverged"] or s["inverted_steps"]):
+            failures.append(f"rounded cylinder on {what}: force error {100 * err:.1f} %, "
+                            f"{1e6 * s['max_penetration_m']:.1f} um inside, {s['diverged']} "
+                            f"diverged, {s['inverted_steps']} inverted")
+
+    # The coarse specimen (the vertex contact is 45 % low there; docs/validation.md): 5 points.
     disc = os.path.join(a.work, "disc.off")
     scenes.write_disc_off(disc)
     disc_scene = os.path.join(a.work, "coarse_disc.json")
     scenes.write_scene(disc_scene, disc, "tetrahedral", stored["radius_mm"], scenes.LINEAR)
-    out = os.path.join(a.work, "disc_rounded_cylinder_continuum.csv")
-    r = subprocess.run([a.indent, disc_scene, "--case", "rounded_cylinder", "--speed", "150",
-                        "--law", "continuum", "--nu", "0.49", "--out", out],
-                       capture_output=True, text=True)
-    if r.returncode != 0:
-        sys.exit(f"fsm-indent failed ({r.returncode}): {r.stderr}")
-    s = json.loads(r.stdout)
-    d, F = validate.read_curve(out)
-    dr, Fr = validate.converged_reference("disc_rounded_cylinder", 0.49)
-    err = validate.max_force_error(d, F, dr, Fr)
-    want = stored["disc_rounded_cylinder"]["max_rel_force_error"]
-    print(f"rounded cylinder on the cylindrical specimen (continuum, nu 0.49, {s['spheres']} "
-          f"spheres): largest force error {100 * err:.1f} % (stored {100 * want:.1f} %, limit "
-          f"{100 * (want + 0.05):.1f} %), deepest sphere centre inside it "
-          f"{1e6 * s['max_penetration_m']:.2f} um, {s['diverged']} diverged")
-    if not err <= want + 0.05 or not s["max_penetration_m"] <= MAX_PENETRATION_M or s["diverged"]:
-        failures.append(f"rounded cylinder on the specimen: force error {100 * err:.1f} %, "
-                        f"{1e6 * s['max_penetration_m']:.1f} um inside, {s['diverged']} diverged")
-    # The same tool on the specimen graded toward it (graded_tools.py's filling at h_0 = 0.5 mm).
+    press_specimen(disc_scene, "the cylindrical specimen",
+                   stored["disc_rounded_cylinder"]["max_rel_force_error"], 0.05, "disc")
+    # The specimen graded toward it (graded_tools.py's filling at h_0 = 0.5 mm): 1 point.
     import graded_tools  # noqa: E402
     g = stored["disc_rounded_cylinder_graded"]
-    dr, Fr = validate.converged_reference("disc_rounded_cylinder", 0.49)
-    graded_scene = graded_tools.graded_scene(a.work, disc, g["size_min_mm"])
-    out = os.path.join(a.work, "graded_disc_rounded_cylinder_continuum.csv")
-    r = subprocess.run([a.indent, graded_scene, "--case", "rounded_cylinder", "--speed", "150",
-                        "--law", "continuum", "--nu", "0.49", "--out", out],
-                       capture_output=True, text=True)
-    if r.returncode != 0:
-        sys.exit(f"fsm-indent failed ({r.returncode}): {r.stderr}")
-    s = json.loads(r.stdout)
-    d, F = validate.read_curve(out)
-    err = validate.max_force_error(d, F, dr, Fr)
-    want = g["max_rel_force_error"]
-    print(f"rounded cylinder on the specimen graded toward it (continuum, nu 0.49, {s['spheres']} "
-          f"spheres): largest force error {100 * err:.1f} % (stored {100 * want:.1f} %, limit "
-          f"{100 * (want + 0.01):.1f} %), deepest sphere centre inside it "
-          f"{1e6 * s['max_penetration_m']:.2f} um, {s['diverged']} diverged, "
-          f"{s['inverted_steps']} inverted")
-    if (not err <= want + 0.01 or not s["max_penetration_m"] <= MAX_PENETRATION_M or s["diverged"]
-            or s["inverted_steps"]):
-        failures.append(f"rounded cylinder on the graded specimen: force error {100 * err:.1f} %, "
-                        f"{1e6 * s['max_penetration_m']:.1f} um inside, {s['diverged']} diverged, "
-                        f"{s['inverted_steps']} inverted")
+    press_specimen(graded_tools.graded_scene(a.work, disc, g["size_min_mm"]),
+                   "the specimen graded toward it", g["max_rel_force_error"], 0.01, "graded_disc")
     limit = stored["compression"]["max_disp_diff_mm"] + 0.05
     m, _ = run("compression", "links")
     print(f"negative control, the paper's link network: {m['max_disp_diff_mm']:.3f} mm")

@@ -26,14 +26,12 @@ against the uniform fillings of results/continuum_sweep.json).
 import argparse
 import json
 import os
-import subprocess
 import sys
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
-import axisym  # noqa: E402
 import continuum_sweep  # noqa: E402
 import scenes  # noqa: E402
 import validate  # noqa: E402
@@ -64,18 +62,8 @@ def graded_scene(work, disc, h0, radius=RADIUS, distance=DISTANCE, size_max=SIZE
 
 def run(a, scene, filling, case, law, nu):
     """One fsm-indent run (reused with --reuse): (curve path, its JSON summary)."""
-    tag = f"{filling}_{case}_{law}" + (f"_nu{nu:g}" if law != "links" else "")
-    curve, summary = (os.path.join(a.work, tag + x) for x in (".csv", ".json"))
-    if not (a.reuse and os.path.exists(curve) and os.path.exists(summary)):
-        p = subprocess.run([a.indent, scene, "--case", axisym.indenter_case(case),
-                            *continuum_sweep.indent_flags(law), "--nu", str(nu),
-                            "--speed", "150", "--out", curve], capture_output=True, text=True)
-        if p.returncode not in (0, 3):
-            sys.exit(f"fsm-indent failed: {p.stderr}")
-        with open(summary, "w") as f:
-            f.write(p.stdout)
-    with open(summary) as f:
-        return curve, json.load(f)
+    return continuum_sweep.indent_tagged(
+        a, scene, case, law, nu, f"{filling}_{case}_{law}" + (f"_nu{nu:g}" if law != "links" else ""))
 
 
 def chart(rows, uniform):
