@@ -149,7 +149,7 @@ def main():
                 else:
                     curve, s = run(a, scene, filling, case, law, nu)
                 d, F = validate.read_curve(curve)
-                row = {"size_min_mm": h0, "radius_mm": radius, "distance_mm": distance,
+                row = {"size_min_mm": h0, "plateau_radius_mm": radius, "distance_mm": distance,
                        "size_max_mm": size_max, "case": case, "nu": nu, "law": law,
                        "spheres": s["spheres"], "tetrahedra": s.get("tetrahedra"),
                        **continuum_sweep.score(d, F, case, nu),
