@@ -90,13 +90,12 @@ def write_scene(path, mesh, topology="tetrahedral", radius=1.5, material=None, g
     if topology == "tetrahedral" and optimiser:
         part["optimiser"] = optimiser
     if topology == "tetrahedral" and graded:
-        # Finer under the tool: size_min within `plateau` of the top's centre (0 unless given),
-        # growing to the radius over `distance`.
-        size_min, distance, *plateau = graded
+        # Finer under the tool: size_min within `plateau` of the top's centre, growing to the
+        # radius over `distance` (graded_tools.py).
+        size_min, distance, plateau = graded
         part["metric"] = {"type": "graded", "size_min": size_min, "size_max": radius,
-                          "centre": [W / 2, W / 2, H], "distance": distance}
-        if plateau:
-            part["metric"]["plateau_radius"] = plateau[0]
+                          "centre": [W / 2, W / 2, H], "distance": distance,
+                          "plateau_radius": plateau}
     if topology == "grid":
         s = grid_spacing or 2 * radius
         part["grid"] = {"neighbours": neighbours, "spacing": s}
