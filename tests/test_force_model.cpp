@@ -513,10 +513,12 @@ TEST(ForceModel, SimdConjugateGradientMatchesTheScalarSolve) {
 
 // The continuum law's element kernels (Options::simd, where the CPU has them) give the scalar
 // loops' forces, energy, element tangents, implicit right-hand side, diagonal and diagonal blocks,
-// and product: a lattice of 29 elements per part (so the last batch of four is partly filled),
-// linear and bilinear, squeezed, stretched past the switch and with one element pushed through its
-// base (J below j_min, inverted), random velocities, one element cut out, one and two threads;
-// with the element strain and with node-smoothed strains (the element share on the kernel).
+// and product (the edge dashpots' forces and the right-hand side's edge springs on the edge
+// kernels included): a lattice of 29 elements per part (so the last batch of four is partly
+// filled), linear and bilinear, squeezed, stretched past the switch and with one element pushed
+// through its base (J below j_min, inverted), random velocities, one element cut out, one and two
+// threads; with the element strain and with node-smoothed strains (the element share on the
+// kernel).
 TEST(ForceModel, SimdElementKernelsMatchTheScalarLoops) {
   // Without AVX2+FMA (or without xsimd at build time) Options::simd runs the scalar loops, so
   // there is nothing to compare; the scalar loops have their own tests.

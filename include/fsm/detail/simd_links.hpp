@@ -56,6 +56,23 @@ using LinkNodeBlocksKernel = void (*)(const std::int32_t* ij, const double* bloc
 
 /// The node-block kernel for this CPU, or nullptr.
 LinkNodeBlocksKernel link_node_blocks_kernel() noexcept;
+/// The continuum law's edge dashpots (ContinuumTerm::add_forces's viscous pass) for edges
+/// [begin, end) of `ij`: per edge, its direction n = (x_j - x_i) / |x_j - x_i| (0 for a zero
+/// length) into entries 0-2 of its 5 in `blocks` (the others untouched), its rate of extension
+/// r = n . (v_j - v_i) into `rate`, and the force (tau k) r n added to `out` on i and subtracted on
+/// j (3 per node; tau and k per edge). `x4`, `v4` as for the link kernels.
+using EdgeDashpotKernel = void (*)(const std::int32_t* ij, const double* tau, const double* k,
+                                   const double* x4, const double* v4, double* blocks, double* rate,
+                                   double* out, std::int32_t begin, std::int32_t end);
+/// For edges [begin, end): w r n added to `out` on i and subtracted on j, with n from entries 0-2
+/// of each edge's 5 in `blocks`, r from `rate` and w per edge (ContinuumTerm::prepare_implicit's
+/// right-hand side).
+using EdgeScatterKernel = void (*)(const std::int32_t* ij, const double* blocks, const double* rate,
+                                   const double* w, double* out, std::int32_t begin,
+                                   std::int32_t end);
+/// The edge kernels for this CPU, or nullptr.
+EdgeDashpotKernel edge_dashpot_kernel() noexcept;
+EdgeScatterKernel edge_scatter_kernel() noexcept;
 
 /// The prepare kernel for this CPU, or nullptr.
 LinkPrepareKernel link_prepare_kernel(bool bilinear, bool along_link) noexcept;

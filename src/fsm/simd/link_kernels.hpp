@@ -440,6 +440,113 @@ double link_energy(const LinkArrays& L, const double* x, std::int32_t num_nodes,
   return e;
 }
 
+// The edge dashpot kernel (see simd_links.hpp): the formulas of ContinuumTerm::add_forces's
+// viscous pass, four edges per batch, two batches before their output as in link_forces.
+template <class Arch>
+inline void edge_dashpot(const std::int32_t* ij, const double* tau, const double* k,
+                         const double* x4, const double* v4, std::int32_t e, double n[3], double& r,
+                         double F[3]) noexcept {
+  const double* xi = x4 + 4 * std::int64_t(ij[2 * e]);
+  const double* xj = x4 + 4 * std::int64_t(ij[2 * e + 1]);
+  const double* vi = v4 + 4 * std::int64_t(ij[2 * e]);
+  const double* vj = v4 + 4 * std::int64_t(ij[2 * e + 1]);
+  const double dx = xj[0] - xi[0], dy = xj[1] - xi[1], dz = xj[2] - xi[2];
+  const double l = __builtin_sqrt(dx * dx + dy * dy + dz * dz);
+  const bool pos = l > 0;
+  n[0] = pos ? dx / l : 0.0;
+  n[1] = pos ? dy / l : 0.0;
+  n[2] = pos ? dz / l : 0.0;
+  r = n[0] * (vj[0] - vi[0]) + n[1] * (vj[1] - vi[1]) + n[2] * (vj[2] - vi[2]);
+  const double c = tau[e] * k[e] * r;
+  for (int a = 0; a < 3; ++a) F[a] = c * n[a];
+}
+
+template <class Arch>
+void edge_dashpots(const std::int32_t* ij, const double* tau, const double* k, const double* x4,
+                   const double* v4, double* blocks, double* rate, double* out, std::int32_t begin,
+                   std::int32_t end) noexcept {
+  using B = xsimd::batch<double, Arch>;
+  RunScatter<Arch> scatter(out);
+  alignas(64) double Fx[8], Fy[8], Fz[8], N[3][8];
+  auto batch = [&](std::int32_t e, int slot) {
+    const std::int32_t* P = ij + 2 * std::int64_t(e);
+    B dx, dy, dz, ux, uy, uz;
+    load_difference_transposed<Arch>(x4, P, dx, dy, dz);
+    load_difference_transposed<Arch>(v4, P, ux, uy, uz);
+    // One division a batch (times 1 / l rather than three divisions by l: the divider is what
+    // this loop waits on); n differs from the scalar loop's d / l by at most an ulp.
+    const B l2 = dx * dx + dy * dy + dz * dz;
+    const B inv = xsimd::select(l2 > B(0.0), B(1.0) / xsimd::sqrt(l2), B(0.0));
+    const B nx = dx * inv, ny = dy * inv, nz = dz * inv;
+    const B r = nx * ux + ny * uy + nz * uz;
+    r.store_unaligned(rate + e);
+    const B c = B::load_unaligned(tau + e) * B::load_unaligned(k + e) * r;
+    (c * nx).store_aligned(Fx + slot);
+    (c * ny).store_aligned(Fy + slot);
+    (c * nz).store_aligned(Fz + slot);
+    nx.store_aligned(N[0] + slot);
+    ny.store_aligned(N[1] + slot);
+    nz.store_aligned(N[2] + slot);
+  };
+  auto emit = [&](std::int32_t e, int count) {
+    for (int q = 0; q < count; ++q) {
+      double* blk = blocks + 5 * std::int64_t(e + q);
+      blk[0] = N[0][q];
+      blk[1] = N[1][q];
+      blk[2] = N[2][q];
+      scatter.put(ij[2 * (e + q)], ij[2 * (e + q) + 1], Fx[q], Fy[q], Fz[q]);
+    }
+  };
+  std::int32_t e = begin;
+  for (; e + 8 <= end; e += 8) {
+    batch(e, 0);
+    batch(e + 4, 4);
+    emit(e, 8);
+  }
+  for (; e + 4 <= end; e += 4) {
+    batch(e, 0);
+    emit(e, 4);
+  }
+  for (; e < end; ++e) {
+    double n[3], F[3];
+    edge_dashpot<Arch>(ij, tau, k, x4, v4, e, n, rate[e], F);
+    double* blk = blocks + 5 * std::int64_t(e);
+    blk[0] = n[0];
+    blk[1] = n[1];
+    blk[2] = n[2];
+    scatter.put(ij[2 * e], ij[2 * e + 1], F[0], F[1], F[2]);
+  }
+  scatter.flush();
+}
+
+// The edge scatter kernel (see simd_links.hpp): (w r) n per edge, as prepare_implicit's loop
+// computes it, four edges per batch.
+template <class Arch>
+void edge_scatter(const std::int32_t* ij, const double* blocks, const double* rate, const double* w,
+                  double* out, std::int32_t begin, std::int32_t end) noexcept {
+  using B = xsimd::batch<double, Arch>;
+  RunScatter<Arch> scatter(out);
+  alignas(64) double Fx[4], Fy[4], Fz[4];
+  std::int32_t e = begin;
+  for (; e + 4 <= end; e += 4) {
+    const double* blk = blocks + 5 * std::int64_t(e);
+    B n0, n1, n2, unused;
+    load_transposed4<Arch>(blk, blk + 5, blk + 10, blk + 15, n0, n1, n2, unused);
+    const B c = B::load_unaligned(w + e) * B::load_unaligned(rate + e);
+    (c * n0).store_aligned(Fx);
+    (c * n1).store_aligned(Fy);
+    (c * n2).store_aligned(Fz);
+    for (int q = 0; q < 4; ++q)
+      scatter.put(ij[2 * (e + q)], ij[2 * (e + q) + 1], Fx[q], Fy[q], Fz[q]);
+  }
+  for (; e < end; ++e) {
+    const double* blk = blocks + 5 * std::int64_t(e);
+    const double c = w[e] * rate[e];
+    scatter.put(ij[2 * e], ij[2 * e + 1], c * blk[0], c * blk[1], c * blk[2]);
+  }
+  scatter.flush();
+}
+
 // The getters of one instruction set's link kernels (`isa`_link_force_kernel, ...), defined by its
 // *_<isa>.cpp file with its arch type; dispatch.cpp declares them (FSM_SIMD_DECLARE_GETTERS).
 #define FSM_SIMD_LINK_GETTERS(isa, Arch)                                                      \
@@ -461,6 +568,12 @@ double link_energy(const LinkArrays& L, const double* x, std::int32_t num_nodes,
   }                                                                                           \
   LinkNodeBlocksKernel isa##_link_node_blocks_kernel() noexcept {                             \
     return &link_node_blocks<Arch>;                                                           \
+  }                                                                                           \
+  EdgeDashpotKernel isa##_edge_dashpot_kernel() noexcept {                                    \
+    return &edge_dashpots<Arch>;                                                              \
+  }                                                                                           \
+  EdgeScatterKernel isa##_edge_scatter_kernel() noexcept {                                    \
+    return &edge_scatter<Arch>;                                                               \
   }
 
 }  // namespace fsm::detail::simd

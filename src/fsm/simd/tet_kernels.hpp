@@ -12,26 +12,34 @@
 
 namespace fsm::detail::simd {
 
-// x^{-2/3} for x > 0 as detail::inverse_cbrt_squared: a seed from the exponent bits, three Newton
-// steps on y^-3 = x and a last one on g = y^2. The seed divides only the high word of the bits by
-// 3 (in doubles: AVX2 has no 64-bit integer division), which moves it by about 2^-20 relative;
-// the Newton steps take it to the same value.
-template <class Arch>
-inline xsimd::batch<double, Arch> inverse_cbrt_squared(
-    const xsimd::batch<double, Arch>& x) noexcept {
+// x^{-2/3} for x > 0 as detail::inverse_cbrt_squared, for N batches at once: a seed from the
+// exponent bits, three Newton steps on y^-3 = x and a last one on g = y^2. The seed divides only
+// the high word of the bits by 3 (in doubles: AVX2 has no 64-bit integer division), which moves it
+// by about 2^-20 relative; the Newton steps take it to the same value. Each batch's steps are one
+// chain of about 20 dependent products: the N chains side by side keep the core busy while each
+// waits (one chain per element batch left a tenth of the force kernel waiting on it).
+template <class Arch, int N>
+inline void inverse_cbrt_squared(const xsimd::batch<double, Arch>* x,
+                                 xsimd::batch<double, Arch>* out) noexcept {
   using B = xsimd::batch<double, Arch>;
   using U = xsimd::batch<std::uint64_t, Arch>;
-  const U bits = xsimd::bitwise_cast<U>(x);
-  const B high = xsimd::batch_cast<double>(U(bits >> 32));  // exact: below 2^32
-  const B seed_high = B(double(0x553ef0ffULL)) - xsimd::floor(high / B(3.0));
-  // An integer-valued double below 2^52 plus 2^52 holds that integer in its low 52 bits.
-  const U seed_bits = (xsimd::bitwise_cast<U>(seed_high + B(4503599627370496.0)) &
-                       U(std::uint64_t(0xFFFFFFFFFFFFFULL)))
-                      << 32;
-  B y = xsimd::bitwise_cast<B>(seed_bits);
-  for (int k = 0; k < 3; ++k) y *= (B(4.0) - x * y * y * y) * B(1.0 / 3.0);
-  const B g = y * y;
-  return g + g * (B(1.0) - x * x * g * g * g) * B(1.0 / 3.0);
+  B y[N];
+  for (int i = 0; i < N; ++i) {
+    const U bits = xsimd::bitwise_cast<U>(x[i]);
+    const B high = xsimd::batch_cast<double>(U(bits >> 32));  // exact: below 2^32
+    const B seed_high = B(double(0x553ef0ffULL)) - xsimd::floor(high / B(3.0));
+    // An integer-valued double below 2^52 plus 2^52 holds that integer in its low 52 bits.
+    const U seed_bits = (xsimd::bitwise_cast<U>(seed_high + B(4503599627370496.0)) &
+                         U(std::uint64_t(0xFFFFFFFFFFFFFULL)))
+                        << 32;
+    y[i] = xsimd::bitwise_cast<B>(seed_bits);
+  }
+  for (int k = 0; k < 3; ++k)
+    for (int i = 0; i < N; ++i) y[i] *= (B(4.0) - x[i] * y[i] * y[i] * y[i]) * B(1.0 / 3.0);
+  for (int i = 0; i < N; ++i) {
+    const B g = y[i] * y[i];
+    out[i] = g + g * (B(1.0) - x[i] * x[i] * g * g * g) * B(1.0 / 3.0);
+  }
 }
 
 // One batch of elements: everything the kernels share, from the positions.
@@ -56,8 +64,8 @@ struct TetBatch {
     }
   }
 
-  // F = Ds D_m^-1 and the deviatoric energy density and its slope dW/dq.
-  inline void deviatoric(const double* rest, double j_min) noexcept {
+  // F = Ds D_m^-1, J and I1.
+  inline void deformation(const double* rest) noexcept {
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c) {
         B s = d[0][r] * B::load_unaligned(rest + 4 * (0 + 3 * c));
@@ -73,13 +81,20 @@ struct TetBatch {
     I1 = B(0.0);
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c) I1 += F[r][c] * F[r][c];
+  }
+
+  // The argument of J^-2/3 (J, or j_min below it).
+  inline B clamped_j(double j_min) const noexcept { return xsimd::max(J, B(j_min)); }
+
+  // After deformation(): the deviatoric energy density and its slope dW/dq, with ga =
+  // clamped_j()^-2/3.
+  inline void deviatoric(const double* rest, double j_min, const B& ga) noexcept {
     // volume_factor: J^-2/3 above j_min, its Taylor extension below.
     const double g0s = 1.0 / __builtin_cbrt(j_min * j_min);
     const double g1s = -2.0 / 3.0 * g0s / j_min;
     const double g2s = 10.0 / 9.0 * g0s / (j_min * j_min);
     const auto above = J >= B(j_min);
-    const B Ja = xsimd::max(J, B(j_min));
-    const B ga = inverse_cbrt_squared<Arch>(Ja);
+    const B Ja = clamped_j(j_min);
     const B t = J - B(j_min);
     g = xsimd::select(above, ga, B(g0s) + t * (B(g1s) + B(0.5 * g2s) * t));
     dg = xsimd::select(above, B(-2.0 / 3.0) * ga / Ja, B(g1s) + B(g2s) * t);
@@ -106,14 +121,30 @@ void tet_forces(const std::int32_t* nodes, const double* rest, const double* x4,
                 double j_min, double* out, double* grad, std::int32_t begin,
                 std::int32_t end) noexcept {
   using B = xsimd::batch<double, Arch>;
+  // Two batches' deformations and J^-2/3 side by side (inverse_cbrt_squared), then each batch's
+  // forces.
+  TetBatch<Arch> pair[2];
   for (std::int32_t b = begin; b < end; ++b) {
+    TetBatch<Arch>& e = pair[(b - begin) % 2];
+    if ((b - begin) % 2 == 0) {
+      const int count = b + 1 < end ? 2 : 1;
+      B j[2], ga[2];
+      for (int i = 0; i < count; ++i) {
+        pair[i].load(nodes + 16 * std::int64_t(b + i), x4);
+        pair[i].deformation(rest + tet_rest_stride * std::int64_t(b + i));
+        j[i] = pair[i].clamped_j(j_min);
+      }
+      if (count == 2)
+        inverse_cbrt_squared<Arch, 2>(j, ga);
+      else
+        inverse_cbrt_squared<Arch, 1>(j, ga);
+      for (int i = 0; i < count; ++i)
+        pair[i].deviatoric(rest + tet_rest_stride * std::int64_t(b + i), j_min, ga[i]);
+    }
     const std::int32_t* n = nodes + 16 * std::int64_t(b);
     const double* R = rest + tet_rest_stride * std::int64_t(b);
     double* o = out + tet_out_stride * std::int64_t(b);
     double* og = grad + tet_grad_stride * std::int64_t(b);
-    TetBatch<Arch> e;
-    e.load(n, x4);
-    e.deviatoric(R, j_min);
     // cof(F) columns: F_1 x F_2, F_2 x F_0, F_0 x F_1.
     const auto& F = e.F;
     B cof[3][3];
@@ -180,7 +211,11 @@ void tet_energy(const std::int32_t* nodes, const double* rest, const double* x4,
     double* o = out + tet_energy_stride * std::int64_t(b);
     TetBatch<Arch> e;
     e.load(nodes + 16 * std::int64_t(b), x4);
-    e.deviatoric(R, j_min);
+    e.deformation(R);
+    const B j = e.clamped_j(j_min);
+    B ga;
+    inverse_cbrt_squared<Arch, 1>(&j, &ga);
+    e.deviatoric(R, j_min, ga);
     (B::load_unaligned(R + tet_rest_volume) * e.W).store_unaligned(o);
     const auto& d = e.d;
     const B cx = d[1][1] * d[2][2] - d[1][2] * d[2][1];
