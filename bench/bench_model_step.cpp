@@ -12,7 +12,7 @@
 //                    [--continuum-part NAME] [--element-tangent-quality Q]
 //                    [--smoothing element|face|edge|node] [--gravity-y] [--no-simd]
 //                    [--detection-margin F] [--adaptive-threads] [--nu NU] [--json]
-//                    [--preconditioners] [--trace FILE]
+//                    [--preconditioners] [--trace FILE] [--phases]
 // --gravity-y: gravity along -y (the Visible Human data set's down) instead of -z.
 // --no-simd: the scalar link loops (ForceModel::Options::simd = false).
 // --detection-margin: collision::ContactOptions::detection_margin (0: penetrating spheres only).
@@ -28,6 +28,12 @@
 // earlier and at rest, and its preconditioners compared (preconditioners.hpp), to CG's tolerance
 // and to 1e-6: one JSON line each, printed with or without --json.
 //
+// --phases: after the timed steps, the step's parts each on their own at the state reached, the
+// fastest of 15 rounds of 200 calls each (a shared machine's slow phases drop out): the force
+// evaluation (once a step), the implicit preparation (an evaluation included), one product (once
+// per CG iteration) and contact detection with its forces' collection; one line, or JSON with
+// --json.
+//
 // --law continuum puts every tetrahedral part on the continuum law, or only NAME with
 // --continuum-part.
 
@@ -35,6 +41,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -58,7 +65,7 @@ int main(int argc, char** argv) {
   double detection_margin = collision::ContactOptions<double>{}.detection_margin;
   std::optional<double> nu;  // unset: each region's own Poisson's ratio
   bool probe = true, json = false, gravity_y = false, simd = true, flutter_guard = true,
-       extrapolate = true, reuse = true, adaptive = false, preconditioners = false;
+       extrapolate = true, reuse = true, adaptive = false, preconditioners = false, phases = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&]() -> std::string {
@@ -108,6 +115,8 @@ int main(int argc, char** argv) {
       nu = std::atof(value().c_str());
     else if (a == "--preconditioners")
       preconditioners = true;
+    else if (a == "--phases")
+      phases = true;
     else if (a == "--json")
       json = true;
     else if (a == "--trace")
@@ -123,7 +132,7 @@ int main(int argc, char** argv) {
           "[--element-tangent-quality Q] [--smoothing element|face|edge|node] [--gravity-y] "
           "[--no-simd] [--no-flutter-guard] [--no-extrapolation] [--no-reuse-end-forces] "
           "[--detection-margin F] [--adaptive-threads] [--nu NU] [--json] [--preconditioners] "
-          "[--trace FILE]\n",
+          "[--trace FILE] [--phases]\n",
           argv[0]);
       return 2;
     }
@@ -341,6 +350,47 @@ int main(int argc, char** argv) {
     if (preconditioners) {
       study("held", assemble(), lagged);
       study("pressing", A_pressing, pressing_lagged);
+    }
+    if (phases) {
+      auto fastest_us = [](auto&& call) {
+        double best = std::numeric_limits<double>::infinity();
+        for (int round = 0; round < 15; ++round) {
+          const auto t0 = std::chrono::steady_clock::now();
+          for (int k = 0; k < 200; ++k) call();
+          best = std::min(
+              best,
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() / 200.0);
+        }
+        return best * 1e6;
+      };
+      SphereModel<double>& m = sim.model();
+      ForceModel<double>& f = sim.forces();
+      const Index n = m.num_nodes();
+      Positions<double> forces(n, 3), rhs(n, 3), diagonal(n, 3), p(n, 3), y(n, 3);
+      p = m.velocities();  // a direction with the model's own scales
+      std::vector<double> blocks(std::size_t(ForceModel<double>::implicit_block_size) *
+                                 std::size_t(m.num_links()));
+      const double evaluate_us =
+          fastest_us([&] { f.evaluate(m, m.positions(), m.velocities(), forces); });
+      const double prepare_us = fastest_us([&] {
+        f.prepare_implicit(m, 1e-3, JacobianForm::definite, blocks.data(), rhs, diagonal);
+      });
+      const double product_us = fastest_us([&] { f.apply_implicit(m, blocks.data(), p, y); });
+      const double contact_us = fastest_us([&] {
+        contacts.compute(m, f);
+        contacts.collect(f);
+      });
+      if (json)
+        std::printf(
+            "{\"model\": \"%s\", \"law\": \"%s\", \"evaluate_us\": %.1f, "
+            "\"prepare_implicit_us\": %.1f, \"product_us\": %.1f, "
+            "\"contact_us\": %.1f}\n",
+            path.c_str(), law.c_str(), evaluate_us, prepare_us, product_us, contact_us);
+      else
+        std::printf(
+            "  phases (fastest of 15 rounds): evaluate %.1f us, prepare_implicit %.1f us "
+            "(an evaluation included), one product %.1f us, contact detection %.1f us\n",
+            evaluate_us, prepare_us, product_us, contact_us);
     }
     if (probe && probe_contacts == 0) {
       std::fprintf(stderr, "bench_model_step: the probe does not touch the tissue\n");
