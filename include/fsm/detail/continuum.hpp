@@ -556,7 +556,7 @@ class ContinuumTerm {
     const std::size_t nt = m_volume.size();
     m_dense.clear();
     // x and v padded to four per node for the kernels (the edges' kernel needs them even where the
-    // element kernel does not run).
+    // element kernel does not run), unless the caller gave them padded.
     if constexpr (std::is_same_v<Scalar, double>)
       if (simd_active()) {
         if (!x4) {
@@ -576,11 +576,11 @@ class ContinuumTerm {
       // The element share's forces, the gradients, volumes and rates on the kernel where there is
       // one; the smoothed part added to its outputs.
       const bool element_kernel =
-          m_element_share > Scalar(0) && run_force_kernel(x, viscous ? v : nullptr, x4, v4);
+          m_element_share > Scalar(0) && run_force_kernel(x4, viscous ? v4 : nullptr);
       smoothed_pass(x, viscous ? v : nullptr, element_kernel);
       kernel = true;
     } else {
-      kernel = run_force_kernel(x, viscous ? v : nullptr, x4, v4);
+      kernel = run_force_kernel(x4, viscous ? v4 : nullptr);
     }
     // The elastic energy and the inverted elements at x, as energy() and inverted() give them
     // (the same sums in the same order), for the element strain: ForceModel reuses a force
@@ -1401,26 +1401,17 @@ class ContinuumTerm {
       for (int k = 0; k < 9; ++k) o[4 * k] = H(k % 3, k / 3);
     }
   }
-  // Runs the force kernel on every batch at (x, v) (v null: no rates); false where it does not run.
-  // (x4, v4: the caller's padded copies, or null.)
-  bool run_force_kernel(const Scalar* x, const Scalar* v, const Scalar* x4,
-                        const Scalar* v4) noexcept {
+  // Runs the force kernel on every batch at (x4, v4), the positions and velocities padded to four
+  // per node (add_forces() pads them; v4 null: no rates); false where it does not run.
+  bool run_force_kernel(const Scalar* x4, const Scalar* v4) noexcept {
     if constexpr (std::is_same_v<Scalar, double>) {
       if (!simd_active()) return false;
-      if (!x4) {
-        pad_rows4(x, m_num_nodes, m_x4.data());
-        x4 = m_x4.data();
-      }
-      if (v && !v4) {
-        pad_rows4(v, m_num_nodes, m_v4.data());
-        v4 = m_v4.data();
-      }
-      simd::tet_force_kernel()(m_batch_nodes.data(), m_batch_rest.data(), x4, v ? v4 : nullptr,
-                               j_min, m_batch_out.data(), m_batch_grad.data(), 0,
+      simd::tet_force_kernel()(m_batch_nodes.data(), m_batch_rest.data(), x4, v4, j_min,
+                               m_batch_out.data(), m_batch_grad.data(), 0,
                                std::int32_t(m_batch_nodes.size() / 16));
       return true;
     }
-    (void)x, (void)v, (void)x4, (void)v4;
+    (void)x4, (void)v4;
     return false;
   }
   bool run_energy_kernel(const Scalar* x) const noexcept {
