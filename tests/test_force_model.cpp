@@ -515,6 +515,8 @@ TEST(ForceModel, SimdConjugateGradientMatchesTheScalarSolve) {
 // from 0 to 13 (so the 8-edge, 4-edge and single-edge loops all run), a zero-length edge among
 // them, edges sharing their first node (the kernel sums a run of them in registers) and not.
 TEST(ForceModel, SimdEdgeDashpotKernelMatchesItsFormulas) {
+  // Without AVX2+FMA (or without xsimd at build time) there is no kernel and add_forces runs the
+  // scalar loop, which SimdElementKernelsMatchTheScalarLoops and the continuum tests cover.
   const auto dashpots = detail::simd::edge_dashpot_kernel();
   if (dashpots == nullptr) GTEST_SKIP() << "no SIMD edge kernel for this CPU or build";
   std::mt19937 rng(41);

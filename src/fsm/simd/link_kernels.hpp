@@ -441,7 +441,8 @@ double link_energy(const LinkArrays& L, const double* x, std::int32_t num_nodes,
 }
 
 // The edge dashpot kernel (see simd_links.hpp): the formulas of ContinuumTerm::add_forces's
-// viscous pass, four edges per batch, two batches before their output as in link_forces.
+// viscous pass, four edges per batch, two batches before their output as in link_forces. One edge,
+// scalar (the remainder): the batch's own formula, times 1 / l, so every edge rounds alike.
 template <class Arch>
 inline void edge_dashpot(const std::int32_t* ij, const double* tau, const double* k,
                          const double* x4, const double* v4, std::int32_t e, double n[3], double& r,
@@ -451,11 +452,11 @@ inline void edge_dashpot(const std::int32_t* ij, const double* tau, const double
   const double* vi = v4 + 4 * std::int64_t(ij[2 * e]);
   const double* vj = v4 + 4 * std::int64_t(ij[2 * e + 1]);
   const double dx = xj[0] - xi[0], dy = xj[1] - xi[1], dz = xj[2] - xi[2];
-  const double l = __builtin_sqrt(dx * dx + dy * dy + dz * dz);
-  const bool pos = l > 0;
-  n[0] = pos ? dx / l : 0.0;
-  n[1] = pos ? dy / l : 0.0;
-  n[2] = pos ? dz / l : 0.0;
+  const double l2 = dx * dx + dy * dy + dz * dz;
+  const double inv = l2 > 0 ? 1 / __builtin_sqrt(l2) : 0.0;
+  n[0] = dx * inv;
+  n[1] = dy * inv;
+  n[2] = dz * inv;
   r = n[0] * (vj[0] - vi[0]) + n[1] * (vj[1] - vi[1]) + n[2] * (vj[2] - vi[2]);
   const double c = tau[e] * k[e] * r;
   for (int a = 0; a < 3; ++a) F[a] = c * n[a];
