@@ -70,7 +70,7 @@ class ImplicitEulerIntegrator final : public Integrator<Scalar> {
     /// 1e-6, in any step that changes the velocities by less than about 1 mm/s. One default for
     /// both precisions (float's own round-off lies above it, so there it rarely decides). 0 (or a
     /// negative value or NaN) turns the floor off; a very large value turns CG off (the step
-    /// keeps its warm start).
+    /// keeps its warm start, scaled as extrapolate_warm_start says).
     Scalar velocity_tolerance{Scalar(1e-9)};
     /// CG iteration cap; reaching it is not a failure (the partial solution is used and the
     /// iteration count reported), a breakdown is.
@@ -87,7 +87,11 @@ class ImplicitEulerIntegrator final : public Integrator<Scalar> {
     /// tissue under a steady or slowly changing load is smooth, so a step then starts nearer it:
     /// 4.1 instead of 6.2 iterations on the bundled uterus with a probe pressing, 5.5 instead of
     /// 10.0 on the VHF pelvis (docs/benchmarks.md). Quadratic extrapolation amplified the solver's
-    /// own error and needed more iterations than none.
+    /// own error and needed more iterations than none. Either guess w is then scaled along itself
+    /// to the least error in the system's energy norm, s = b^T w / w^T A w (two dot products),
+    /// so no solve starts further from the solution in that norm than zero: unscaled, a guess
+    /// that carried motion the new system no longer has kept it wherever the stopping test could
+    /// not see it, and the error grew from step to step (docs/physics.md, section 5).
     bool extrapolate_warm_start{true};
   };
 
@@ -149,6 +153,9 @@ class ImplicitEulerIntegrator final : public Integrator<Scalar> {
   Scalar update(Scalar alpha) noexcept;
   void new_direction(Scalar beta) noexcept;
   Scalar curvature() noexcept;
+  // Scales the warm start m_dv, whose product A m_dv is in m_q, by the factor that minimises the
+  // error's energy norm along it (both scaled; 0 when A is not positive along it).
+  void scale_warm_start() noexcept;
 
   Positions<Scalar> m_rhs, m_diag, m_dv, m_r, m_z, m_p, m_q, m_x_end;
   // The velocity change of the step before the last (the warm start's extrapolation) and the

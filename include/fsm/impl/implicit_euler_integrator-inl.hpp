@@ -119,6 +119,33 @@ Scalar ImplicitEulerIntegrator<Scalar>::curvature() noexcept {
 }
 
 template <typename Scalar>
+void ImplicitEulerIntegrator<Scalar>::scale_warm_start() noexcept {
+  // s = b^T w / w^T A w minimises |s w - dv*|_A, the error's energy norm, so the start is never
+  // further from the solution in that norm than zero is (Galerkin: |s w - dv*|_A <= |dv*|_A),
+  // and CG only lowers it from there. Unscaled, a warm start that carried a velocity change the
+  // new system no longer wants kept it wherever the stopping test cannot see it (docs/physics.md,
+  // section 5).
+  Scalar wq, bw;
+  if constexpr (std::is_same_v<Scalar, double>) {
+    if (m_simd.dot) {
+      const std::int64_t n = std::int64_t(m_dv.size());
+      wq = m_simd.dot(n, m_dv.data(), m_q.data());
+      bw = m_simd.dot(n, m_dv.data(), m_rhs.data());
+    } else {
+      wq = m_dv.cwiseProduct(m_q).sum();
+      bw = m_dv.cwiseProduct(m_rhs).sum();
+    }
+  } else {
+    wq = m_dv.cwiseProduct(m_q).sum();
+    bw = m_dv.cwiseProduct(m_rhs).sum();
+  }
+  const Scalar s = wq > Scalar(0) && std::isfinite(wq) && std::isfinite(bw) ? bw / wq : Scalar(0);
+  if (s == Scalar(1)) return;
+  m_dv *= s;
+  m_q *= s;
+}
+
+template <typename Scalar>
 IntegratorResult ImplicitEulerIntegrator<Scalar>::step(SphereModel<Scalar>& model,
                                                        ForceModel<Scalar>& forces,
                                                        Scalar dt) noexcept {
@@ -223,6 +250,7 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg_pass(
   const Scalar target2 =
       weighted ? std::max(m_options.tolerance * m_options.tolerance * bz, m_floor2) : Scalar(0);
   forces.apply_implicit(model, m_blocks.data(), m_dv, m_q);
+  scale_warm_start();
   m_r = m_rhs - m_q;
   Scalar rz = precondition_dot();
   // (Written so that a NaN residual goes into CG and fails there.)
