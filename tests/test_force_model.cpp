@@ -511,14 +511,17 @@ TEST(ForceModel, SimdConjugateGradientMatchesTheScalarSolve) {
   }
 }
 
-// The edge dashpot kernel on its own, against its formulas computed here: every count of edges
-// from 0 to 13 (so the 8-edge, 4-edge and single-edge loops all run), a zero-length edge among
-// them, edges sharing their first node (the kernel sums a run of them in registers) and not.
-TEST(ForceModel, SimdEdgeDashpotKernelMatchesItsFormulas) {
-  // Without AVX2+FMA (or without xsimd at build time) there is no kernel and add_forces runs the
-  // scalar loop, which SimdElementKernelsMatchTheScalarLoops and the continuum tests cover.
+// The edge kernels on their own, against their formulas computed here: every count of edges from
+// 0 to 13 (so the 8-edge, 4-edge and single-edge loops all run), a zero-length edge among them,
+// edges sharing their first node (the kernels sum a run of them in registers) and not.
+TEST(ForceModel, SimdEdgeKernelsMatchTheirFormulas) {
+  // Without AVX2+FMA (or without xsimd at build time) there are no kernels and the continuum term
+  // runs its scalar loops, which SimdElementKernelsMatchTheScalarLoops and the continuum tests
+  // cover.
   const auto dashpots = detail::simd::edge_dashpot_kernel();
-  if (dashpots == nullptr) GTEST_SKIP() << "no SIMD edge kernel for this CPU or build";
+  const auto scatter = detail::simd::edge_scatter_kernel();
+  if (dashpots == nullptr || scatter == nullptr)
+    GTEST_SKIP() << "no SIMD edge kernel for this CPU or build";
   std::mt19937 rng(41);
   std::normal_distribution<double> g(0.0, 1.0);
   const int nodes = 9;
@@ -529,7 +532,7 @@ TEST(ForceModel, SimdEdgeDashpotKernelMatchesItsFormulas) {
   for (int count = 0; count <= 13; ++count) {
     SCOPED_TRACE(testing::Message() << count << " edges");
     std::vector<std::int32_t> ij;
-    std::vector<double> tau, k;
+    std::vector<double> tau, k, w;
     for (int e = 0; e < count; ++e) {
       const int i = e % 5 == 4 ? 7 : e / 3;  // runs of three edges at node e / 3
       const int j = e % 5 == 4 ? 8 : (e / 3 + 1 + e % 3) % nodes;
@@ -537,11 +540,14 @@ TEST(ForceModel, SimdEdgeDashpotKernelMatchesItsFormulas) {
       ij.push_back(j);
       tau.push_back(0.01 * (1 + e));
       k.push_back(100.0 + 10.0 * e);
+      w.push_back(1e-6 * (1 + e));
     }
     std::vector<double> blocks(5 * std::size_t(count), 7.0), rate(std::size_t(count), 0.0);
-    std::vector<double> f(3 * nodes, 0.0), f_ref(3 * nodes, 0.0);
+    std::vector<double> f(3 * nodes, 0.0), rhs(3 * nodes, 0.0);
+    std::vector<double> f_ref(3 * nodes, 0.0), rhs_ref(3 * nodes, 0.0);
     dashpots(ij.data(), tau.data(), k.data(), x4.data(), v4.data(), blocks.data(), rate.data(),
              f.data(), 0, count);
+    scatter(ij.data(), blocks.data(), rate.data(), w.data(), rhs.data(), 0, count);
     double largest = 0;
     for (int e = 0; e < count; ++e) {
       const int i = ij[2 * std::size_t(e)], j = ij[2 * std::size_t(e) + 1];
@@ -565,10 +571,16 @@ TEST(ForceModel, SimdEdgeDashpotKernelMatchesItsFormulas) {
         const double F = tau[std::size_t(e)] * k[std::size_t(e)] * r * n[c];
         f_ref[3 * std::size_t(i) + std::size_t(c)] += F;
         f_ref[3 * std::size_t(j) + std::size_t(c)] -= F;
+        const double R = w[std::size_t(e)] * r * n[c];
+        rhs_ref[3 * std::size_t(i) + std::size_t(c)] += R;
+        rhs_ref[3 * std::size_t(j) + std::size_t(c)] -= R;
         largest = std::max(largest, std::abs(F));
       }
     }
-    for (std::size_t a = 0; a < f.size(); ++a) EXPECT_NEAR(f[a], f_ref[a], 1e-13 * (1 + largest));
+    for (std::size_t a = 0; a < f.size(); ++a) {
+      EXPECT_NEAR(f[a], f_ref[a], 1e-13 * (1 + largest));
+      EXPECT_NEAR(rhs[a], rhs_ref[a], 1e-13 * (1 + largest));
+    }
     if (count > 0) {
       EXPECT_GT(largest, 0.0);
     }
@@ -577,11 +589,12 @@ TEST(ForceModel, SimdEdgeDashpotKernelMatchesItsFormulas) {
 
 // The continuum law's element kernels (Options::simd, where the CPU has them) give the scalar
 // loops' forces, energy, element tangents, implicit right-hand side, diagonal and diagonal blocks,
-// and product (the edge dashpots' forces on their kernel included): a lattice of 29 elements per
-// part (so the last batch of four is partly filled), linear and bilinear, squeezed, stretched past
-// the switch and with one element pushed through its base (J below j_min, inverted), random
-// velocities, one element cut out, one and two threads; with the element strain and with
-// node-smoothed strains (the element share on the kernel).
+// and product (the edge dashpots' forces and the right-hand side's edge springs on the edge
+// kernels included): a lattice of 29 elements per part (so the last batch of four is partly
+// filled), linear and bilinear, squeezed, stretched past the switch and with one element pushed
+// through its base (J below j_min, inverted), random velocities, one element cut out, one and two
+// threads; with the element strain and with node-smoothed strains (the element share on the
+// kernel).
 TEST(ForceModel, SimdElementKernelsMatchTheScalarLoops) {
   // Without AVX2+FMA (or without xsimd at build time) Options::simd runs the scalar loops, so
   // there is nothing to compare; the scalar loops have their own tests.

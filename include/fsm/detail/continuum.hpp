@@ -437,6 +437,7 @@ class ContinuumTerm {
     set_element_tangent_quality(m_element_tangent_quality);
     m_edge_block.assign(std::size_t(edge_block_size) * num_edges(), Scalar(0));
     m_edge_rate.assign(num_edges(), Scalar(0));
+    m_edge_weight.assign(num_edges(), Scalar(0));
     m_node_coefficient.assign(std::size_t(n), Scalar(0));
     m_node_rate.assign(std::size_t(n), Scalar(0));
     m_node_blocks.assign(6 * std::size_t(n), Scalar(0));
@@ -844,7 +845,23 @@ class ContinuumTerm {
     // The edges' directions and rates of extension, and the nodal volumes' rates: kept by a
     // viscous add_forces() at this x, v.
     const bool kept = m_rate_generation == m_generation;
-    for (std::size_t e = 0; e < num_edges(); ++e) {
+    // With the kept directions and rates and the edge kernels, the springs' tangents here and the
+    // right-hand side on the scatter kernel (the same products).
+    simd::EdgeScatterKernel edge_rhs = nullptr;
+    if constexpr (std::is_same_v<Scalar, double>)
+      if (kept && edge_blocks) edge_rhs = simd::edge_scatter_kernel();
+    if (edge_rhs) {
+      for (std::size_t e = 0; e < num_edges(); ++e) {
+        const Scalar k = tangent_margin * edge_stiffness(e);
+        m_edge_block[std::size_t(edge_block_size) * e + 3] =
+            h2 * k + h * m_edge_tau[e] * m_edge_k[e];
+        m_edge_weight[e] = h2 * k;
+      }
+      if constexpr (std::is_same_v<Scalar, double>)
+        edge_rhs(m_edges.data(), m_edge_block.data(), m_edge_rate.data(), m_edge_weight.data(), rhs,
+                 0, std::int32_t(num_edges()));
+    }
+    for (std::size_t e = 0; e < (edge_rhs ? 0 : num_edges()); ++e) {
       const Index i = m_edges[2 * e], j = m_edges[2 * e + 1];
       Scalar* B = &m_edge_block[std::size_t(edge_block_size) * e];
       if (!kept) {
@@ -1657,8 +1674,9 @@ class ContinuumTerm {
   // edge_block_size per edge: n, (h^2 + h tau) k and 0 (a link's block, simd_links.hpp).
   static constexpr int edge_block_size = 5;
   std::vector<Scalar> m_edge_block;
-  std::vector<Scalar> m_edge_rate;  // per edge: n . (v_j - v_i) at the last viscous add_forces()
-  std::vector<Scalar> m_node_rate;  // per node: d(nodal volume)/dt, the same
+  std::vector<Scalar> m_edge_rate;    // per edge: n . (v_j - v_i) at the last viscous add_forces()
+  std::vector<Scalar> m_node_rate;    // per node: d(nodal volume)/dt, the same
+  std::vector<Scalar> m_edge_weight;  // per edge: h^2 k at the last prepare_implicit() (scratch)
   std::uint64_t m_rate_generation{~std::uint64_t(0)};  // m_generation when they were kept
   std::vector<Scalar> m_node_coefficient;              // per node
   // The tangent's 3 x 3 diagonal blocks per node (xx yy zz xy xz yz), from prepare_implicit().

@@ -64,8 +64,15 @@ LinkNodeBlocksKernel link_node_blocks_kernel() noexcept;
 using EdgeDashpotKernel = void (*)(const std::int32_t* ij, const double* tau, const double* k,
                                    const double* x4, const double* v4, double* blocks, double* rate,
                                    double* out, std::int32_t begin, std::int32_t end);
-/// The edge dashpot kernel for this CPU, or nullptr.
+/// For edges [begin, end): w r n added to `out` on i and subtracted on j, with n from entries 0-2
+/// of each edge's 5 in `blocks`, r from `rate` and w per edge (ContinuumTerm::prepare_implicit's
+/// right-hand side).
+using EdgeScatterKernel = void (*)(const std::int32_t* ij, const double* blocks, const double* rate,
+                                   const double* w, double* out, std::int32_t begin,
+                                   std::int32_t end);
+/// The edge kernels for this CPU, or nullptr.
 EdgeDashpotKernel edge_dashpot_kernel() noexcept;
+EdgeScatterKernel edge_scatter_kernel() noexcept;
 
 /// The prepare kernel for this CPU, or nullptr.
 LinkPrepareKernel link_prepare_kernel(bool bilinear, bool along_link) noexcept;

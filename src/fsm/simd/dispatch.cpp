@@ -14,6 +14,7 @@
   X(LinkEnergyKernel, link_energy_kernel)            \
   X(LinkNodeBlocksKernel, link_node_blocks_kernel)   \
   X(EdgeDashpotKernel, edge_dashpot_kernel)          \
+  X(EdgeScatterKernel, edge_scatter_kernel)          \
   X(TetForceKernel, tet_force_kernel)                \
   X(TetEnergyKernel, tet_energy_kernel)              \
   X(TetSpreadKernel, tet_spread_kernel)              \

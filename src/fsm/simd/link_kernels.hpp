@@ -520,6 +520,34 @@ void edge_dashpots(const std::int32_t* ij, const double* tau, const double* k, c
   scatter.flush();
 }
 
+// The edge scatter kernel (see simd_links.hpp): (w r) n per edge, as prepare_implicit's loop
+// computes it, four edges per batch.
+template <class Arch>
+void edge_scatter(const std::int32_t* ij, const double* blocks, const double* rate, const double* w,
+                  double* out, std::int32_t begin, std::int32_t end) noexcept {
+  using B = xsimd::batch<double, Arch>;
+  RunScatter<Arch> scatter(out);
+  alignas(64) double Fx[4], Fy[4], Fz[4];
+  std::int32_t e = begin;
+  for (; e + 4 <= end; e += 4) {
+    const double* blk = blocks + 5 * std::int64_t(e);
+    B n0, n1, n2, unused;
+    load_transposed4<Arch>(blk, blk + 5, blk + 10, blk + 15, n0, n1, n2, unused);
+    const B c = B::load_unaligned(w + e) * B::load_unaligned(rate + e);
+    (c * n0).store_aligned(Fx);
+    (c * n1).store_aligned(Fy);
+    (c * n2).store_aligned(Fz);
+    for (int q = 0; q < 4; ++q)
+      scatter.put(ij[2 * (e + q)], ij[2 * (e + q) + 1], Fx[q], Fy[q], Fz[q]);
+  }
+  for (; e < end; ++e) {
+    const double* blk = blocks + 5 * std::int64_t(e);
+    const double c = w[e] * rate[e];
+    scatter.put(ij[2 * e], ij[2 * e + 1], c * blk[0], c * blk[1], c * blk[2]);
+  }
+  scatter.flush();
+}
+
 // The getters of one instruction set's link kernels (`isa`_link_force_kernel, ...), defined by its
 // *_<isa>.cpp file with its arch type; dispatch.cpp declares them (FSM_SIMD_DECLARE_GETTERS).
 #define FSM_SIMD_LINK_GETTERS(isa, Arch)                                                      \
@@ -544,6 +572,9 @@ void edge_dashpots(const std::int32_t* ij, const double* tau, const double* k, c
   }                                                                                           \
   EdgeDashpotKernel isa##_edge_dashpot_kernel() noexcept {                                    \
     return &edge_dashpots<Arch>;                                                              \
+  }                                                                                           \
+  EdgeScatterKernel isa##_edge_scatter_kernel() noexcept {                                    \
+    return &edge_scatter<Arch>;                                                               \
   }
 
 }  // namespace fsm::detail::simd
