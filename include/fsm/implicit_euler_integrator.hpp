@@ -86,12 +86,14 @@ class ImplicitEulerIntegrator final : public Integrator<Scalar> {
     /// this step's length. The solution is the same to the tolerance; the motion of
     /// tissue under a steady or slowly changing load is smooth, so a step then starts nearer it:
     /// 4.1 instead of 6.2 iterations on the bundled uterus with a probe pressing, 5.5 instead of
-    /// 10.0 on the VHF pelvis (docs/benchmarks.md). Quadratic extrapolation amplified the solver's
-    /// own error and needed more iterations than none. Either guess w is then scaled along itself
-    /// to the least error in the system's energy norm, s = b^T w / w^T A w (two dot products),
-    /// so no solve starts further from the solution in that norm than zero: unscaled, a guess
-    /// that carried motion the new system no longer has kept it wherever the stopping test could
-    /// not see it, and the error grew from step to step (docs/physics.md, section 5).
+    /// 10.0 on the VHF pelvis (docs/benchmarks.md; measured 2026-11-26, before the scaling below).
+    /// Quadratic extrapolation amplified the solver's own error and needed more iterations than
+    /// none. Either guess w is then scaled along itself to the least error in the system's energy
+    /// norm, s = b^T w / w^T A w (two dot products and two scalings), so no solve starts further
+    /// from the solution in that norm than zero (A positive definite, as JacobianForm::definite
+    /// makes it): unscaled, a guess that carried motion the new system no longer has kept it
+    /// wherever the stopping test could not see it, and the error grew from step to step
+    /// (docs/physics.md, section 5).
     bool extrapolate_warm_start{true};
   };
 

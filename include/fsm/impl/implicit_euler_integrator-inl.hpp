@@ -122,24 +122,19 @@ template <typename Scalar>
 void ImplicitEulerIntegrator<Scalar>::scale_warm_start() noexcept {
   // s = b^T w / w^T A w minimises |s w - dv*|_A, the error's energy norm, so the start is never
   // further from the solution in that norm than zero is (Galerkin: |s w - dv*|_A <= |dv*|_A),
-  // and CG only lowers it from there. Unscaled, a warm start that carried a velocity change the
+  // and CG only lowers it from there (both for A and P positive definite, as the default
+  // JacobianForm::definite makes them). Unscaled, a warm start that carried a velocity change the
   // new system no longer wants kept it wherever the stopping test cannot see it (docs/physics.md,
   // section 5).
-  Scalar wq, bw;
-  if constexpr (std::is_same_v<Scalar, double>) {
-    if (m_simd.dot) {
-      const std::int64_t n = std::int64_t(m_dv.size());
-      wq = m_simd.dot(n, m_dv.data(), m_q.data());
-      bw = m_simd.dot(n, m_dv.data(), m_rhs.data());
-    } else {
-      wq = m_dv.cwiseProduct(m_q).sum();
-      bw = m_dv.cwiseProduct(m_rhs).sum();
+  auto dot = [&](const Positions<Scalar>& a, const Positions<Scalar>& b) {
+    if constexpr (std::is_same_v<Scalar, double>) {
+      if (m_simd.dot) return m_simd.dot(std::int64_t(a.size()), a.data(), b.data());
     }
-  } else {
-    wq = m_dv.cwiseProduct(m_q).sum();
-    bw = m_dv.cwiseProduct(m_rhs).sum();
-  }
-  const Scalar s = wq > Scalar(0) && std::isfinite(wq) && std::isfinite(bw) ? bw / wq : Scalar(0);
+    return a.cwiseProduct(b).sum();
+  };
+  const Scalar wq = dot(m_dv, m_q), bw = dot(m_dv, m_rhs);
+  Scalar s = wq > Scalar(0) && std::isfinite(wq) ? bw / wq : Scalar(0);
+  if (!std::isfinite(s)) s = Scalar(0);  // a NaN b^T w, or an overflow
   if (s == Scalar(1)) return;
   m_dv *= s;
   m_q *= s;
