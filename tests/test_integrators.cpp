@@ -639,15 +639,13 @@ TEST(Integrators, AStaleWarmStartAtRestIsDropped) {
   }
 }
 
-// A block of tissue at 5 mm, its bottom layer fixed, moving at random (up to 1 cm/s).
+// block_on_fixed_base(), moving at random (up to 1 cm/s).
 SphereModel<double> moving_block() {
-  SphereModel<double> start = block<double>({4, 3, 3}, 0.005, tissue<double>());
+  SphereModel<double> start = block_on_fixed_base<double>();
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> speed(-0.01, 0.01);
-  for (Index i = 0; i < start.num_nodes(); ++i) {
-    if (start.rest_positions()(i, 2) < 1e-9) start.set_fixed(i);
+  for (Index i = 0; i < start.num_nodes(); ++i)
     for (int c = 0; c < 3; ++c) start.velocities()(i, c) = start.fixed()[i] ? 0.0 : speed(rng);
-  }
   return start;
 }
 

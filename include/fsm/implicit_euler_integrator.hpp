@@ -89,7 +89,7 @@ class ImplicitEulerIntegrator final : public Integrator<Scalar> {
     /// 10.0 on the VHF pelvis (docs/benchmarks.md; measured 2026-11-26, before the scaling below).
     /// Quadratic extrapolation amplified the solver's own error and needed more iterations than
     /// none. Either guess w is then scaled along itself to the least error in the system's energy
-    /// norm, s = b^T w / w^T A w (two dot products and two scalings), so no solve starts further
+    /// norm, s = b^T w / w^T A w (two dot products and one scaling), so no solve starts further
     /// from the solution in that norm than zero (A positive definite, as JacobianForm::definite
     /// makes it): unscaled, a guess that carried motion the new system no longer has kept it
     /// wherever the stopping test could not see it, and the error grew from step to step
@@ -155,9 +155,11 @@ class ImplicitEulerIntegrator final : public Integrator<Scalar> {
   Scalar update(Scalar alpha) noexcept;
   void new_direction(Scalar beta) noexcept;
   Scalar curvature() noexcept;
-  // Scales the warm start m_dv, whose product A m_dv is in m_q, by the factor that minimises the
-  // error's energy norm along it (both scaled; 0 when A is not positive along it).
-  void scale_warm_start() noexcept;
+  // a^T b, on the SIMD dot kernel where there is one.
+  Scalar dot(const Positions<Scalar>& a, const Positions<Scalar>& b) const noexcept;
+  // Scales the warm start m_dv, whose product A m_dv is in m_q, by the factor s that minimises the
+  // error's energy norm along it (0 when A is not positive along it), and returns s.
+  Scalar scale_warm_start() noexcept;
 
   Positions<Scalar> m_rhs, m_diag, m_dv, m_r, m_z, m_p, m_q, m_x_end;
   // The velocity change of the step before the last (the warm start's extrapolation) and the

@@ -111,33 +111,32 @@ void ImplicitEulerIntegrator<Scalar>::new_direction(Scalar beta) noexcept {
 }
 
 template <typename Scalar>
-Scalar ImplicitEulerIntegrator<Scalar>::curvature() noexcept {
+Scalar ImplicitEulerIntegrator<Scalar>::dot(const Positions<Scalar>& a,
+                                            const Positions<Scalar>& b) const noexcept {
   if constexpr (std::is_same_v<Scalar, double>) {
-    if (m_simd.dot) return m_simd.dot(std::int64_t(m_p.size()), m_p.data(), m_q.data());
+    if (m_simd.dot) return m_simd.dot(std::int64_t(a.size()), a.data(), b.data());
   }
-  return m_p.cwiseProduct(m_q).sum();
+  return a.cwiseProduct(b).sum();
 }
 
 template <typename Scalar>
-void ImplicitEulerIntegrator<Scalar>::scale_warm_start() noexcept {
+Scalar ImplicitEulerIntegrator<Scalar>::curvature() noexcept {
+  return dot(m_p, m_q);
+}
+
+template <typename Scalar>
+Scalar ImplicitEulerIntegrator<Scalar>::scale_warm_start() noexcept {
   // s = b^T w / w^T A w minimises |s w - dv*|_A, the error's energy norm, so the start is never
   // further from the solution in that norm than zero is (Galerkin: |s w - dv*|_A <= |dv*|_A),
   // and CG only lowers it from there (both for A and P positive definite, as the default
   // JacobianForm::definite makes them). Unscaled, a warm start that carried a velocity change the
   // new system no longer wants kept it wherever the stopping test cannot see it (docs/physics.md,
   // section 5).
-  auto dot = [&](const Positions<Scalar>& a, const Positions<Scalar>& b) {
-    if constexpr (std::is_same_v<Scalar, double>) {
-      if (m_simd.dot) return m_simd.dot(std::int64_t(a.size()), a.data(), b.data());
-    }
-    return a.cwiseProduct(b).sum();
-  };
   const Scalar wq = dot(m_dv, m_q), bw = dot(m_dv, m_rhs);
   Scalar s = wq > Scalar(0) && std::isfinite(wq) ? bw / wq : Scalar(0);
   if (!std::isfinite(s)) s = Scalar(0);  // a NaN b^T w, or an overflow
-  if (s == Scalar(1)) return;
-  m_dv *= s;
-  m_q *= s;
+  if (s != Scalar(1)) m_dv *= s;
+  return s;
 }
 
 template <typename Scalar>
@@ -245,8 +244,7 @@ IntegratorResult ImplicitEulerIntegrator<Scalar>::solve_cg_pass(
   const Scalar target2 =
       weighted ? std::max(m_options.tolerance * m_options.tolerance * bz, m_floor2) : Scalar(0);
   forces.apply_implicit(model, m_blocks.data(), m_dv, m_q);
-  scale_warm_start();
-  m_r = m_rhs - m_q;
+  m_r = m_rhs - scale_warm_start() * m_q;  // A (s w) = s A w
   Scalar rz = precondition_dot();
   // (Written so that a NaN residual goes into CG and fails there.)
   auto converged = [&](Scalar r_z) {
