@@ -119,6 +119,126 @@ TEST(Simulation, EachStepIsHeldToTheEnergyItStartedWith) {
   }
 }
 
+// DivergencePolicy::energy_gain_strain. A backward-Euler step removes energy; one that gains
+// some was made by an error (the solve's, the linearisation's), and a finer level makes less of
+// it. This integrator is implicit Euler that then scales every velocity by 1 + a h^2: on a block
+// moving as a whole (no internal force) a step of length h gains 2 a h^2 of its kinetic energy,
+// and each halving halves a step's gain.
+class GainingIntegrator final : public Integrator<double> {
+ public:
+  GainingIntegrator(double a, bool implicit) : m_a(a), m_implicit(implicit) {}
+  std::string_view name() const noexcept override { return "gaining"; }
+  int order() const noexcept override { return 1; }
+  bool implicit() const noexcept override { return m_implicit; }
+  void prepare(const SphereModel<double>& model) override { m_inner.prepare(model); }
+  IntegratorResult step(SphereModel<double>& model, ForceModel<double>& forces,
+                        double h) noexcept override {
+    const IntegratorResult r = m_inner.step(model, forces, h);
+    model.velocities() *= 1 + m_a * h * h;
+    return r;
+  }
+  void reset() noexcept override { m_inner.reset(); }
+  std::unique_ptr<Integrator<double>> clone() const override {
+    return std::make_unique<GainingIntegrator>(*this);
+  }
+  double stable_time_step(const SpectralBound<double>& b) const noexcept override {
+    return m_inner.stable_time_step(b);
+  }
+
+ private:
+  ImplicitEulerIntegrator<double> m_inner;
+  double m_a;
+  bool m_implicit;
+};
+
+struct GainRun {
+  StepReport<double> report;
+  double limit;
+};
+
+// One 1 ms step of a 3 x 3 x 3 block moving at 1 m/s whose step gains `limits` times the default
+// limit at full length (a small share of its kinetic energy, so halving halves the gain to 0.1 %).
+GainRun gaining_step(double limits, bool implicit, int halvings, double gain_strain = 0.005) {
+  SphereModel<double> model = block<double>({3, 3, 3}, 0.005);
+  model.velocities().col(0).setConstant(1.0);
+  auto o = options<double>("implicit_euler");
+  o.divergence.max_substep_halvings = halvings;
+  // The default limit as the simulation computes it.
+  const double limit = Simulation<double>(model, o).energy_gain_limit();
+  o.divergence.energy_gain_strain = gain_strain;
+  const double kinetic = 0.5 * model.masses().sum();
+  const double dt = 1e-3;
+  const double a = limits * limit / (2 * dt * dt * kinetic);
+  Simulation<double> sim(model, std::make_unique<GainingIntegrator>(a, implicit), o);
+  return {sim.step(dt), limit};
+}
+
+TEST(Simulation, AnImplicitStepThatGainsEnergyIsRetriedFiner) {
+  // Gains of 3, 1.5 and 0.75 limits at the levels 0, 1 and 2: the third is kept.
+  const GainRun r = gaining_step(3, true, 3);
+  ASSERT_GT(r.limit, 0);
+  EXPECT_EQ(r.report.status, StepStatus::recovered);
+  EXPECT_EQ(r.report.energy_gain_retries, 2);
+  EXPECT_EQ(r.report.substeps, 1 + 2 + 4);
+  EXPECT_GT(r.report.energy_gain, 0.7 * r.limit);
+  EXPECT_LT(r.report.energy_gain, 0.8 * r.limit);
+  // Off: the full step stands with its gain.
+  const GainRun off = gaining_step(3, true, 3, 0.0);
+  EXPECT_EQ(off.report.status, StepStatus::ok);
+  EXPECT_EQ(off.report.energy_gain_retries, 0);
+  EXPECT_GT(off.report.energy_gain, 2.9 * r.limit);
+}
+
+TEST(Simulation, TheLastLevelStandsWhenItStillGains) {
+  // One halving allowed: its 1.5 limits are kept (the divergence checks pass), not rolled back.
+  const GainRun r = gaining_step(3, true, 1);
+  EXPECT_EQ(r.report.status, StepStatus::recovered);
+  EXPECT_EQ(r.report.energy_gain_retries, 1);
+  EXPECT_GT(r.report.energy_gain, 1.4 * r.limit);
+  EXPECT_LT(r.report.energy_gain, 1.6 * r.limit);
+  // No halving allowed: nothing to retry.
+  const GainRun none = gaining_step(3, true, 0);
+  EXPECT_EQ(none.report.status, StepStatus::ok);
+  EXPECT_EQ(none.report.energy_gain_retries, 0);
+}
+
+TEST(Simulation, ExplicitStepsAreNotRetriedForTheirGain) {
+  // Explicit schemes gain energy by their nature (Heun on an undamped mode); only the divergence
+  // checks hold them.
+  const GainRun r = gaining_step(3, false, 3);
+  EXPECT_EQ(r.report.status, StepStatus::ok);
+  EXPECT_EQ(r.report.energy_gain_retries, 0);
+  EXPECT_GT(r.report.energy_gain, 2.9 * r.limit);
+}
+
+// The real implicit Euler never trips the gain limit on a stretched model ringing down: its steps
+// remove energy.
+TEST(Simulation, HonestImplicitStepsAreNotRetriedForGain) {
+  std::mt19937 rng(71);
+  auto o = options<double>("implicit_euler");
+  o.divergence.max_substep_halvings = 2;
+  SphereModel<double> model = random_model<double>(rng, {3, 3, 3}, 0.2);
+  model.positions() *= 1.05;
+  Simulation<double> sim(model, o);
+  double largest = -std::numeric_limits<double>::infinity();
+  for (int s = 0; s < 500; ++s) {
+    const StepReport<double> r = sim.step(1e-3);
+    ASSERT_EQ(r.status, StepStatus::ok);
+    ASSERT_EQ(r.energy_gain_retries, 0);
+    largest = std::max(largest, double(r.energy_gain));
+  }
+  std::printf("largest gain %.3g J, limit %.3g J\n", largest, double(sim.energy_gain_limit()));
+  EXPECT_LT(largest, 1e-3 * sim.energy_gain_limit());
+}
+
+TEST(Simulation, RejectsABadEnergyGainStrain) {
+  for (const double g : {-0.01, std::nan(""), std::numeric_limits<double>::infinity()}) {
+    auto o = options<double>("implicit_euler");
+    o.divergence.energy_gain_strain = g;
+    EXPECT_THROW(Simulation<double>(two_spheres(0.001, 500.0, 0.1), o), Error) << g;
+  }
+}
+
 // Bad edits between steps and a model resized without refresh() are refused, never stepped.
 TEST(Simulation, InvalidInputIsRefusedAndTheLastGoodStateKept) {
   SphereModel<double> model = block<double>({3, 3, 3}, 0.005);

@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -56,6 +57,8 @@ struct Args {
   double capsule_tear{0.2};
   std::string contact{"faces"};  // how the probe meets tetrahedral parts
   std::string law{"scene"};      // the tetrahedral parts' force law: scene, links or continuum
+  // DivergencePolicy::energy_gain_strain of the probing session (0: off)
+  double energy_gain_strain{DivergencePolicy<double>{}.energy_gain_strain};
 };
 
 // Parses the command line (CLI11): returns the exit status when the program should stop there
@@ -113,6 +116,11 @@ int parse(int argc, char** argv, Args& a) {
   app.add_option("--capsule-tear", a.capsule_tear,
                  "myomectomy: the strain past which the fibroid's capsule tears")
       ->check(CLI::Range(0.01, 10.0))
+      ->capture_default_str();
+  app.add_option("--energy-gain-strain", a.energy_gain_strain,
+                 "probing: an implicit step that gains more energy than every link and element "
+                 "strained this much is retried as sub-steps (0: off; docs/physics.md section 7)")
+      ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
   app.add_option("--export", a.export_dir,
                  "write the session as a ParaView time series (DIR/fsm.pvd: spheres, links, "
@@ -200,6 +208,7 @@ int main(int argc, char** argv) {
     // as diverged (and the servo loop's watchdog zeroes the force): a thin ligament flung by the
     // probe gained energy in one linearised 1 ms step (docs/haptics.md, "Under load").
     so.divergence.max_substep_halvings = 2;
+    so.divergence.energy_gain_strain = args.energy_gain_strain;
     SphereModel<double> spheres = model.spheres;
     const std::string law = examples::apply_law(model, spheres, args.law);
     Simulation<double> sim(std::move(spheres), so);
@@ -373,6 +382,13 @@ int main(int argc, char** argv) {
                           examples::read_pixels(gl.width(), gl.height()), gl.width(), gl.height());
     }
 
+    // The largest energy a step gained beyond its start energy and work, in units of the limit
+    // past which a level is retried finer (DivergencePolicy::energy_gain_strain); null if none.
+    char gain[32] = "null", gain_j[32] = "null";
+    if (std::isfinite(st.largest_energy_gain) && sim.energy_gain_limit() > 0)
+      std::snprintf(gain, sizeof gain, "%.3f", st.largest_energy_gain / sim.energy_gain_limit());
+    if (std::isfinite(st.largest_energy_gain))
+      std::snprintf(gain_j, sizeof gain_j, "%.3e", st.largest_energy_gain);
     char json[2048];
     std::snprintf(
         json, sizeof json,
@@ -386,6 +402,8 @@ int main(int argc, char** argv) {
         "\"servo_period_error_p99_us\": %.1f, \"step_p50_us\": %.1f, \"step_p99_us\": %.1f, "
         "\"step_max_us\": %.1f, "
         "\"watchdog_trips\": %zu, \"diverged_steps\": %zu, \"unconverged_solves\": %zu, "
+        "\"energy_gain_retries\": %zu, \"largest_energy_gain_J\": %s, "
+        "\"largest_energy_gain_to_limit\": %s, "
         "\"peak_instrument_force_N\": %.4f, "
         "\"peak_commanded_force_N\": %.4f, \"stress_processes\": %d, \"realtime_priority\": %d, "
         "\"realtime\": %s, \"threading\": \"%s\", \"law\": \"%s\", \"exported_states\": %zu, "
@@ -394,10 +412,10 @@ int main(int argc, char** argv) {
         int(model.skin.num_vertices()), snap.time, frame_hz.size(), fmin, fmed, fmax,
         skin_mean * 1e6, st.ticks, st.missed_deadlines, st.period_p50 * 1e6, st.period_p99 * 1e6,
         st.period_max * 1e6, st.period_error_p99 * 1e6, st.step_p50 * 1e6, st.step_p99 * 1e6,
-        st.step_max * 1e6, st.watchdog_trips, st.diverged_steps, st.unconverged_solves, peak,
-        st.peak_force, stress.count(), args.realtime, st.realtime ? "true" : "false",
-        args.threading.c_str(), law.c_str(), exporter ? exporter->states() : std::size_t(0),
-        args.out.c_str());
+        st.step_max * 1e6, st.watchdog_trips, st.diverged_steps, st.unconverged_solves,
+        st.energy_gain_retries, gain_j, gain, peak, st.peak_force, stress.count(), args.realtime,
+        st.realtime ? "true" : "false", args.threading.c_str(), law.c_str(),
+        exporter ? exporter->states() : std::size_t(0), args.out.c_str());
     {
       std::ofstream f(args.out + "/stats.json");
       f << json << '\n';

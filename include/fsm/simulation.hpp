@@ -47,6 +47,13 @@ struct StepReport {
   int unconverged_solves{0};
   /// Kinetic + elastic + gravitational energy after the step (J); NaN when not checked.
   Scalar energy{std::numeric_limits<Scalar>::quiet_NaN()};
+  /// The energy the step ended with beyond what it started with plus the work done on it (J):
+  /// negative when it removed energy, as an implicit step does; NaN when not checked (or when the
+  /// step took a new reference after a cut).
+  Scalar energy_gain{std::numeric_limits<Scalar>::quiet_NaN()};
+  /// Sub-step levels run again because a level gained more energy than
+  /// DivergencePolicy::energy_gain_strain allows (included in `substeps`).
+  int energy_gain_retries{0};
   /// Continuum elements inverted (\f$J \le 0\f$) after an accepted step (0 without the law). The
   /// law's energy stays finite through inversion and pushes the element back; a step that cannot
   /// is rolled back as diverged.
@@ -96,6 +103,16 @@ struct DivergencePolicy {
   Scalar energy_floor_strain{Scalar(0.01)};
   /// After a divergence, retry with 2, 4, ... 2^k sub-steps (k = 0 turns this off).
   int max_substep_halvings{0};
+  /// Implicit integrators only (backward Euler removes energy; it does not make any): a step that
+  /// passes the checks above but ends with more energy than it started with plus the work done on
+  /// it, by more than the energy of every link and element strained by this much, is retried as
+  /// sub-steps like a divergence (with max_substep_halvings above 0). If the last level still gains
+  /// that much, its result is kept when it passes the checks above (StepReport::energy_gain says
+  /// how much it gained). 0 turns this off. The default allows a quarter of the floor above: on the
+  /// bundled uterus and the VHF pelvis, no accepted step of either law gained more than an eighth
+  /// of it, while the steps of a spurious runaway gained one to twenty floors each
+  /// (docs/physics.md, section 7).
+  Scalar energy_gain_strain{Scalar(0.005)};
 };
 
 /// @brief When regions (parts) sleep: held still and left out of the force loop until something
@@ -218,6 +235,10 @@ class Simulation {
   }
   /// @brief Energy account at the current state.
   [[nodiscard]] EnergyReport<Scalar> energy() const noexcept;
+  /// @brief The energy a step may gain before it is retried finer (J):
+  /// DivergencePolicy::energy_gain_strain as the energy of every link and element strained that
+  /// much; 0 when off.
+  [[nodiscard]] Scalar energy_gain_limit() const noexcept { return m_gain_limit; }
   /// @brief Takes the current energy as the new reference (external work restarts at 0).
   void reset_energy_reference() noexcept;
   /// @brief Simulated time (s) since construction or reset().
@@ -264,6 +285,8 @@ class Simulation {
   // The energy at the start of the next step (DivergencePolicy::check_step_energy).
   Scalar m_start_energy{0};
   Scalar m_energy_floor{0};
+  // DivergencePolicy::energy_gain_strain as an energy (J); 0: off.
+  Scalar m_gain_limit{0};
   Scalar m_time{0};
   // Options::adaptive_threads: phase 0 times steps on the pool, 1 without, 2 runs the faster for
   // `period` steps; `count` timed steps into a trial (after its untimed warm-up), or steps into

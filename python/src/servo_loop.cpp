@@ -51,6 +51,11 @@ for the loop's threads where the system allows), realtime_spin (s).)");
       .def_readonly("diverged_steps", &fh::ServoStats::diverged_steps, "steps rolled back")
       .def_readonly("unconverged_solves", &fh::ServoStats::unconverged_solves,
                     "integrator steps whose linear solve stopped at its iteration cap")
+      .def_readonly("energy_gain_retries", &fh::ServoStats::energy_gain_retries,
+                    "sub-step levels run again because they gained energy an implicit step "
+                    "cannot make (energy_gain_strain)")
+      .def_readonly("largest_energy_gain", &fh::ServoStats::largest_energy_gain,
+                    "J: the largest energy_gain of an accepted step (nan when none was checked)")
       .def_readonly("peak_force", &fh::ServoStats::peak_force, "N")
       .def_readonly("realtime", &fh::ServoStats::realtime,
                     "every thread that asked for real-time scheduling got it");

@@ -49,6 +49,12 @@ void define_simulation(py::module_& m) {
                     "sub-steps with a linear solve (any contact pass) stopped at its iteration "
                     "cap short of its tolerance (taken anyway if the divergence checks passed)")
       .def_readonly("energy", &R::energy, "J after the step (nan when not checked)")
+      .def_readonly("energy_gain", &R::energy_gain,
+                    "J the step ended with beyond its start energy plus the work done on it "
+                    "(negative when it removed energy; nan when not checked)")
+      .def_readonly("energy_gain_retries", &R::energy_gain_retries,
+                    "sub-step levels run again because they gained more than energy_gain_strain "
+                    "allows")
       .def_readonly("inverted_elements", &R::inverted_elements,
                     "continuum elements with J <= 0 after the step (0 without the law)")
       .def_readonly("softened_contacts", &R::softened_contacts,
@@ -79,7 +85,7 @@ Simulation(model, integrator="implicit_euler", gravity=(0, 0, -9.81), damping="a
            threads=1, check_energy=True, energy_tolerance=1.0, max_substep_halvings=0,
            drag=0.0, element_tangent_quality=0.3, strain_smoothing="element",
            smoothing_element_share=0.1, flutter_guard=True, reuse_end_forces=True,
-           adaptive_threads=False, check_step_energy=True)
+           adaptive_threads=False, check_step_energy=True, energy_gain_strain=0.005)
 
 The model is copied in; sim.model is the simulated one. integrator is a name from
 fsm.integrator_names() or an fsm.Integrator instance (copied). drag (1/s) is the surroundings'
@@ -99,14 +105,18 @@ which runs; the two agree to rounding). A diverging step is rolled back and repo
 as NaN: with check_energy, a step whose energy exceeds the budget (the reference energy plus the
 external work since) by more than energy_tolerance times it; with check_step_energy as well, one
 that exceeds its own start energy plus its work by as much (the cumulative budget grows slack as
-damping removes energy). Raises fsm.Error for a bad model or option.)")
+damping removes energy). energy_gain_strain: an implicit step that passes those checks but ends
+with more energy than it started with plus its work, by more than the energy of every link and
+element strained that much, is retried as sub-steps (with max_substep_halvings above 0; the last
+level stands; 0 turns this off; StepReport.energy_gain says how much a step gained). Raises
+fsm.Error for a bad model or option.)")
       .def(py::init([](const SphereModel<Scalar>& model, const py::object& integrator,
                        const Vector3<Scalar>& gravity, const std::string& damping, int threads,
                        bool check_energy, Scalar energy_tolerance, int max_substep_halvings,
                        Scalar drag, Scalar element_tangent_quality,
                        const std::string& strain_smoothing, Scalar smoothing_element_share,
                        bool flutter_guard, bool reuse_end_forces, bool adaptive_threads,
-                       bool check_step_energy) {
+                       bool check_step_energy, Scalar energy_gain_strain) {
              typename Sim::Options o;
              o.adaptive_threads = adaptive_threads;
              o.forces.strain_smoothing = to_smoothing(strain_smoothing);
@@ -122,6 +132,7 @@ damping removes energy). Raises fsm.Error for a bad model or option.)")
              o.divergence.energy_tolerance = energy_tolerance;
              o.divergence.max_substep_halvings = max_substep_halvings;
              o.divergence.check_step_energy = check_step_energy;
+             o.divergence.energy_gain_strain = energy_gain_strain;
              return std::make_unique<Sim>(model, to_integrator(integrator), o);
            }),
            py::arg("model"), py::arg("integrator") = "implicit_euler",
@@ -131,7 +142,8 @@ damping removes energy). Raises fsm.Error for a bad model or option.)")
            py::arg("drag") = 0.0, py::arg("element_tangent_quality") = 0.3,
            py::arg("strain_smoothing") = "element", py::arg("smoothing_element_share") = 0.1,
            py::arg("flutter_guard") = true, py::arg("reuse_end_forces") = true,
-           py::arg("adaptive_threads") = false, py::arg("check_step_energy") = true)
+           py::arg("adaptive_threads") = false, py::arg("check_step_energy") = true,
+           py::arg("energy_gain_strain") = 0.005)
       .def("step", &Sim::step, py::arg("dt"), py::call_guard<py::gil_scoped_release>(),
            "Advances by dt seconds; returns a StepReport. Never raises.")
       .def_property_readonly("uses_pool", &Sim::uses_pool,

@@ -136,6 +136,23 @@ def test_each_step_is_held_to_the_energy_it_started_with(block):
     assert highest[False] > 5 * highest[True]  # measured 66
 
 
+def test_energy_gain_is_reported_and_its_strain_checked(block):
+    """energy_gain: what a step ended with beyond its start energy and work; an implicit step
+    ringing down removes energy, so it is never retried for a gain."""
+    sim = fsm.Simulation(block, integrator="implicit_euler", gravity=(0, 0, 0),
+                         max_substep_halvings=2)
+    sim.model.positions[:, 2] *= 1.05
+    reports = [sim.step(1e-3) for _ in range(100)]
+    assert all(r.status == "ok" and r.energy_gain_retries == 0 for r in reports)
+    gains = np.array([r.energy_gain for r in reports])
+    assert np.all(np.isfinite(gains)) and gains.max() <= 1e-12 and gains.min() < 0
+    unchecked = fsm.Simulation(block, check_energy=False).step(1e-3)
+    assert math.isnan(unchecked.energy_gain)
+    for bad in (-0.01, float("nan")):
+        with pytest.raises(fsm.Error):
+            fsm.Simulation(block, energy_gain_strain=bad)
+
+
 def test_two_sphere_oscillator_frequency(tissue):
     """q'' = -(2k/m) q: the period measured through the bindings matches 2 pi sqrt(m / 2k)."""
     m, k = 0.001, 500.0

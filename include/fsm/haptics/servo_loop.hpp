@@ -7,6 +7,7 @@
 #include <atomic>
 #include <chrono>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <thread>
 #include <vector>
@@ -104,6 +105,12 @@ struct ServoStats {
   /// Integrator steps whose linear solve stopped at its iteration cap short of its tolerance
   /// (StepReport::unconverged_solves summed over the steps)
   std::size_t unconverged_solves{0};
+  /// Sub-step levels run again because they gained energy an implicit step cannot make
+  /// (StepReport::energy_gain_retries summed over the steps; DivergencePolicy::energy_gain_strain)
+  std::size_t energy_gain_retries{0};
+  /// The largest energy an accepted step ended with beyond its start energy plus the work done on
+  /// it (J; StepReport::energy_gain); NaN when no step's energy was checked
+  double largest_energy_gain{std::numeric_limits<double>::quiet_NaN()};
   double peak_force{0};  ///< largest commanded force magnitude (N)
   /// Every loop thread that asked for real-time scheduling (ServoOptions::realtime_priority) got
   /// it; false when none was asked for or the system refused.
@@ -277,7 +284,10 @@ class ServoLoop {
   // Stats (each written by one thread).
   std::vector<float> m_periods, m_step_times;
   std::atomic<std::size_t> m_ticks{0}, m_steps{0}, m_missed{0}, m_trips{0}, m_diverged{0},
-      m_unconverged{0};
+      m_unconverged{0}, m_gain_retries{0};
+  // The largest StepReport::energy_gain of an accepted step (written by the simulation's thread
+  // only); NaN before the first checked one.
+  std::atomic<double> m_largest_gain{std::numeric_limits<double>::quiet_NaN()};
   std::atomic<std::size_t> m_healthy_steps{0};
   std::atomic<int> m_rt_asked{0}, m_rt_granted{0};
   std::atomic<double> m_peak{0};

@@ -46,10 +46,12 @@ void Simulation<Scalar>::refresh() {
   m_thread_trial = ThreadTrial{};  // the threads' trials start again, on the pool
   m_forces.use_pool(true);
   const auto& d = m_options.divergence;
-  if (!(d.energy_tolerance >= 0) || !(d.energy_floor_strain >= 0) || d.max_substep_halvings < 0 ||
+  if (!(d.energy_tolerance >= 0) || !(d.energy_floor_strain >= 0) || !(d.energy_gain_strain >= 0) ||
+      !std::isfinite(d.energy_gain_strain) || d.max_substep_halvings < 0 ||
       d.max_substep_halvings > 20)
     throw Error("", "divergence policy",
-                "tolerances must be non-negative and max_substep_halvings in [0, 20]");
+                "tolerances must be non-negative, energy_gain_strain finite and "
+                "max_substep_halvings in [0, 20]");
   m_fixed_nodes.clear();
   for (Index i = 0; i < m_model.num_nodes(); ++i)
     if (m_model.fixed()[i]) {
@@ -65,9 +67,10 @@ void Simulation<Scalar>::refresh() {
   m_bound.damping_max += m_options.forces.drag;  // the drag damps every mode at rate gamma
   const auto k = m_model.stiffness();
   const auto l0 = m_model.rest_lengths();
-  const Scalar s = d.energy_floor_strain;
-  m_energy_floor =
-      Scalar(0.5) * s * s * (k.dot(l0.cwiseProduct(l0)) + m_forces.element_energy_scale());
+  const Scalar strained = k.dot(l0.cwiseProduct(l0)) + m_forces.element_energy_scale();
+  const Scalar s = d.energy_floor_strain, g = d.energy_gain_strain;
+  m_energy_floor = Scalar(0.5) * s * s * strained;
+  m_gain_limit = Scalar(0.5) * g * g * strained;
   // Sleeping bookkeeping (every region awake after a refresh).
   const Index nr = m_model.num_regions(), nn = m_model.num_nodes();
   const auto region = m_model.node_regions();
@@ -436,7 +439,8 @@ StepReport<Scalar> Simulation<Scalar>::advance(Scalar dt) noexcept {
     m_forces.set_contact_time(contact_time + dt);
     good = good && detail::all_finite(x.data(), x.size()) && detail::all_finite(v.data(), v.size());
     if (good) m_forces.finish_contacts(m_model);
-    Scalar work(0), energy = std::numeric_limits<Scalar>::quiet_NaN();
+    Scalar work(0), energy = std::numeric_limits<Scalar>::quiet_NaN(),
+                    gain = std::numeric_limits<Scalar>::quiet_NaN();
     if (good && policy.check_energy) {
       // External forces are constant over the step, so their work is exact; the contacts' is
       // taken at their end-of-step force, an upper bound for a contact that pushes harder as it
@@ -461,6 +465,14 @@ StepReport<Scalar> Simulation<Scalar>::advance(Scalar dt) noexcept {
         };
         good = std::isfinite(energy) && within(m_energy_reference + m_external_work + work) &&
                (!policy.check_step_energy || within(m_start_energy + work));
+        gain = energy - (m_start_energy + work);
+        // A level that gained energy a backward-Euler step cannot make: retried finer while
+        // there is a finer level; the last level's result stands on the checks above.
+        if (good && m_gain_limit > Scalar(0) && m_integrator->implicit() && gain > m_gain_limit &&
+            level < policy.max_substep_halvings) {
+          good = false;
+          ++report.energy_gain_retries;
+        }
       }
     }
     report.substeps += s;
@@ -482,6 +494,7 @@ StepReport<Scalar> Simulation<Scalar>::advance(Scalar dt) noexcept {
       m_forces_kept = kept;
       report.status = level == 0 ? StepStatus::ok : StepStatus::recovered;
       report.energy = energy;
+      report.energy_gain = gain;
       // From the kept evaluation unless the elements changed since (then -1).
       const Index inverted = m_forces.kept_inverted_elements();
       report.inverted_elements = inverted >= 0 ? inverted : m_forces.inverted_elements(x);

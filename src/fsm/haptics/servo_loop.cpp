@@ -166,7 +166,8 @@ void ServoLoop::begin(bool local_model) {
   m_rearm_time = 0;
   m_periods.clear();
   m_step_times.clear();
-  m_ticks = m_steps = m_missed = m_trips = m_diverged = m_unconverged = 0;
+  m_ticks = m_steps = m_missed = m_trips = m_diverged = m_unconverged = m_gain_retries = 0;
+  m_largest_gain = std::numeric_limits<double>::quiet_NaN();
   m_healthy_steps = 0;
   m_rt_asked = 0;
   m_rt_granted = 0;
@@ -342,6 +343,13 @@ void ServoLoop::physics_step(double t) noexcept {
   m_contacts.collect(m_sim.forces());
   if (report.unconverged_solves > 0)
     m_unconverged.fetch_add(std::size_t(report.unconverged_solves), std::memory_order_relaxed);
+  if (report.energy_gain_retries > 0)
+    m_gain_retries.fetch_add(std::size_t(report.energy_gain_retries), std::memory_order_relaxed);
+  if (report.advanced() && std::isfinite(report.energy_gain)) {
+    const double largest = m_largest_gain.load(std::memory_order_relaxed);
+    if (!(largest >= report.energy_gain))  // NaN (none yet) or smaller
+      m_largest_gain.store(double(report.energy_gain), std::memory_order_relaxed);
+  }
   if (m_action != nullptr) m_action_wrench = m_action->wrench(m_sim);  // once per step
   if (!report.advanced()) {
     ++m_diverged;
@@ -545,6 +553,8 @@ ServoStats ServoLoop::stats() const {
   s.watchdog_trips = m_trips;
   s.diverged_steps = m_diverged;
   s.unconverged_solves = m_unconverged;
+  s.energy_gain_retries = m_gain_retries;
+  s.largest_energy_gain = m_largest_gain.load(std::memory_order_relaxed);
   s.peak_force = m_peak;
   s.realtime = m_rt_asked.load() > 0 && m_rt_granted.load() == m_rt_asked.load();
   s.period_p50 = percentile(m_periods, 0.5);
