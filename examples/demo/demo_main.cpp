@@ -404,7 +404,7 @@ int main(int argc, char** argv) {
         "\"watchdog_trips\": %zu, \"diverged_steps\": %zu, \"unconverged_solves\": %zu, "
         "\"energy_gain_retries\": %zu, \"largest_energy_gain_J\": %s, "
         "\"largest_energy_gain_to_limit\": %s, "
-        "\"peak_instrument_force_N\": %.4f, "
+        "\"peak_instrument_force_N\": %.4f, \"peak_instrument_force_rendered_N\": %.4f, "
         "\"peak_commanded_force_N\": %.4f, \"stress_processes\": %d, \"realtime_priority\": %d, "
         "\"realtime\": %s, \"threading\": \"%s\", \"law\": \"%s\", \"exported_states\": %zu, "
         "\"out\": \"%s\"}",
@@ -413,9 +413,9 @@ int main(int argc, char** argv) {
         skin_mean * 1e6, st.ticks, st.missed_deadlines, st.period_p50 * 1e6, st.period_p99 * 1e6,
         st.period_max * 1e6, st.period_error_p99 * 1e6, st.step_p50 * 1e6, st.step_p99 * 1e6,
         st.step_max * 1e6, st.watchdog_trips, st.diverged_steps, st.unconverged_solves,
-        st.energy_gain_retries, gain_j, gain, peak, st.peak_force, stress.count(), args.realtime,
-        st.realtime ? "true" : "false", args.threading.c_str(), law.c_str(),
-        exporter ? exporter->states() : std::size_t(0), args.out.c_str());
+        st.energy_gain_retries, gain_j, gain, st.peak_tissue_force, peak, st.peak_force,
+        stress.count(), args.realtime, st.realtime ? "true" : "false", args.threading.c_str(),
+        law.c_str(), exporter ? exporter->states() : std::size_t(0), args.out.c_str());
     {
       std::ofstream f(args.out + "/stats.json");
       f << json << '\n';
@@ -444,8 +444,10 @@ int main(int argc, char** argv) {
       std::printf("  skinning (%d vertices) + normals + BVH refit: %.0f us per frame\n",
                   int(model.skin.num_vertices()), skin_mean * 1e6);
       std::printf(
-          "  peak instrument force %.3f N (commanded to the device: %.3f N); watchdog trips %zu\n",
-          peak, st.peak_force, st.watchdog_trips);
+          "  peak instrument force %.3f N (in the rendered states: %.3f N; commanded to the "
+          "device: "
+          "%.3f N); watchdog trips %zu\n",
+          st.peak_tissue_force, peak, st.peak_force, st.watchdog_trips);
       if (exporter)
         std::printf("  ParaView series: %s (%zu states)\n", exporter->series_path().c_str(),
                     exporter->states());

@@ -57,6 +57,8 @@ for the loop's threads where the system allows), realtime_spin (s).)");
       .def_readonly("largest_energy_gain", &fh::ServoStats::largest_energy_gain,
                     "J: the largest energy_gain of an accepted step (nan when none was checked)")
       .def_readonly("peak_force", &fh::ServoStats::peak_force, "N")
+      .def_readonly("peak_tissue_force", &fh::ServoStats::peak_tissue_force,
+                    "N: the largest contact force on the instrument, over every step")
       .def_readonly("realtime", &fh::ServoStats::realtime,
                     "every thread that asked for real-time scheduling got it");
 

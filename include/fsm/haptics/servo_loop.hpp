@@ -112,6 +112,9 @@ struct ServoStats {
   /// it (J; StepReport::energy_gain); NaN when no step's energy was checked
   double largest_energy_gain{std::numeric_limits<double>::quiet_NaN()};
   double peak_force{0};  ///< largest commanded force magnitude (N)
+  /// largest contact force on the instrument (N), over every simulation step (what
+  /// ServoSnapshot::tissue_force carries)
+  double peak_tissue_force{0};
   /// Every loop thread that asked for real-time scheduling (ServoOptions::realtime_priority) got
   /// it; false when none was asked for or the system refused.
   bool realtime{false};
@@ -285,9 +288,10 @@ class ServoLoop {
   std::vector<float> m_periods, m_step_times;
   std::atomic<std::size_t> m_ticks{0}, m_steps{0}, m_missed{0}, m_trips{0}, m_diverged{0},
       m_unconverged{0}, m_gain_retries{0};
-  // The largest StepReport::energy_gain of an accepted step (written by the simulation's thread
-  // only); NaN before the first checked one.
-  std::atomic<double> m_largest_gain{std::numeric_limits<double>::quiet_NaN()};
+  // The largest StepReport::energy_gain of an accepted step; -infinity before the first checked
+  // one.
+  std::atomic<double> m_largest_gain{-std::numeric_limits<double>::infinity()};
+  std::atomic<double> m_peak_tissue{0};  // the largest ServoSnapshot::tissue_force, every step
   std::atomic<std::size_t> m_healthy_steps{0};
   std::atomic<int> m_rt_asked{0}, m_rt_granted{0};
   std::atomic<double> m_peak{0};

@@ -167,7 +167,8 @@ void ServoLoop::begin(bool local_model) {
   m_periods.clear();
   m_step_times.clear();
   m_ticks = m_steps = m_missed = m_trips = m_diverged = m_unconverged = m_gain_retries = 0;
-  m_largest_gain = std::numeric_limits<double>::quiet_NaN();
+  m_largest_gain = -std::numeric_limits<double>::infinity();
+  m_peak_tissue = 0;
   m_healthy_steps = 0;
   m_rt_asked = 0;
   m_rt_granted = 0;
@@ -345,11 +346,8 @@ void ServoLoop::physics_step(double t) noexcept {
     m_unconverged.fetch_add(std::size_t(report.unconverged_solves), std::memory_order_relaxed);
   if (report.energy_gain_retries > 0)
     m_gain_retries.fetch_add(std::size_t(report.energy_gain_retries), std::memory_order_relaxed);
-  if (report.advanced() && std::isfinite(report.energy_gain)) {
-    const double largest = m_largest_gain.load(std::memory_order_relaxed);
-    if (!(largest >= report.energy_gain))  // NaN (none yet) or smaller
-      m_largest_gain.store(double(report.energy_gain), std::memory_order_relaxed);
-  }
+  if (report.advanced() && std::isfinite(report.energy_gain))
+    atomic_max(m_largest_gain, report.energy_gain);
   if (m_action != nullptr) m_action_wrench = m_action->wrench(m_sim);  // once per step
   if (!report.advanced()) {
     ++m_diverged;
@@ -374,6 +372,7 @@ void ServoLoop::physics_step(double t) noexcept {
   s.force = d.force;
   s.tissue_force = m_contacts.wrench(m_instrument).force;
   s.tissue_force += m_action_wrench.force;
+  atomic_max(m_peak_tissue, s.tissue_force.norm());
   s.step_time = std::chrono::duration<double>(Clock::now() - start).count();
   s.advanced = report.advanced();
   m_snapshots.publish();
@@ -554,7 +553,9 @@ ServoStats ServoLoop::stats() const {
   s.diverged_steps = m_diverged;
   s.unconverged_solves = m_unconverged;
   s.energy_gain_retries = m_gain_retries;
-  s.largest_energy_gain = m_largest_gain.load(std::memory_order_relaxed);
+  const double gain = m_largest_gain.load(std::memory_order_relaxed);
+  s.largest_energy_gain = std::isfinite(gain) ? gain : std::numeric_limits<double>::quiet_NaN();
+  s.peak_tissue_force = m_peak_tissue;
   s.peak_force = m_peak;
   s.realtime = m_rt_asked.load() > 0 && m_rt_granted.load() == m_rt_asked.load();
   s.period_p50 = percentile(m_periods, 0.5);
