@@ -128,6 +128,36 @@ TEST(ServoLoop, InstrumentActionRunsEveryStepAndItsForceReachesTheDevice) {
   EXPECT_NEAR(f[1490].force.head<2>().norm(), 0.0, 1e-9);
 }
 
+// ServoStats::peak_tissue_force is the largest contact force on the instrument over every step:
+// each step's snapshot, read in the next step's hook (and the last after the run). The render
+// side, reading at its own rate, can miss it; the device renders far less.
+TEST(ServoLoop, PeakTissueForceIsTheLargestOfEveryStep) {
+  Scene s;
+  DeviceLimits lim;
+  lim.max_force = 0.08;
+  ScriptedHapticDevice dev({{0.0, V3(0.01, 0.01, 0.012), Eigen::Quaterniond::Identity(), 0},
+                            {0.3, V3(0.01, 0.01, 0.004), Eigen::Quaterniond::Identity(), 0},
+                            {0.5, V3(0.01, 0.01, 0.012), Eigen::Quaterniond::Identity(), 0}},
+                           lim);
+  ServoLoop loop(s.sim, s.contacts, s.tool, dev);
+  double peak = 0, every_17th = 0;
+  int steps = 0;
+  ServoSnapshot snap;
+  loop.set_step_hook([&](double) {
+    if (steps++ > 0 && loop.read_snapshot(snap)) {
+      peak = std::max(peak, snap.tissue_force.norm());
+      if (steps % 17 == 0) every_17th = std::max(every_17th, snap.tissue_force.norm());
+    }
+  });
+  loop.run_fast(0.8);
+  if (loop.read_snapshot(snap)) peak = std::max(peak, snap.tissue_force.norm());
+  EXPECT_EQ(loop.stats().peak_tissue_force, peak);
+  EXPECT_GT(peak, 2 * 0.08);  // pressed in past what the device renders
+  EXPECT_LE(loop.stats().peak_force, 0.08 + 1e-12);
+  std::printf("peak %.4f N; every 17th step %.4f N\n", peak, every_17th);
+  EXPECT_GE(peak, every_17th);
+}
+
 TEST(ServoLoop, ForceNeverExceedsTheLimitAndRampsIn) {
   Scene s;
   DeviceLimits lim;

@@ -42,8 +42,11 @@ def test_servo_loop_offline_presses_the_block(block):
     st = loop.stats()
     assert st.ticks == 800 and st.steps == 800
     assert st.diverged_steps == 0 and st.unconverged_solves == 0
+    assert st.energy_gain_retries == 0 and st.largest_energy_gain <= 1e-9
     f = d.forces()
     assert f[:, 3].max() > 0.01  # pushed up, out of the tissue
+    # The tissue's largest push on the instrument, over every step (N).
+    assert 0.01 < st.peak_tissue_force < 10
     assert np.all(np.isfinite(f))
     assert len(loop.step_times()) == 800
 
