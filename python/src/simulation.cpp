@@ -261,6 +261,9 @@ fsm.Error for a bad model or option.)")
       .def_property_readonly("spectral_bound", &Sim::spectral_bound,
                              "The model's SpectralBound (highest eigenfrequency, damping rate).")
       .def("energy", &Sim::energy, "The EnergyReport at the current state.")
+      .def_property_readonly("energy_gain_limit", &Sim::energy_gain_limit,
+                             "J an implicit step may gain before it is retried finer "
+                             "(energy_gain_strain as an energy; 0 when off)")
       .def("reset_energy_reference", &Sim::reset_energy_reference,
            "Takes the current energy as the new reference (after editing the state by hand).")
       .def_property_readonly("time", &Sim::time, "Simulated seconds.")
