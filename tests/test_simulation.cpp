@@ -126,13 +126,16 @@ TEST(Simulation, EachStepIsHeldToTheEnergyItStartedWith) {
 // and each halving halves a step's gain.
 class GainingIntegrator final : public Integrator<double> {
  public:
-  GainingIntegrator(double a, bool implicit) : m_a(a), m_implicit(implicit) {}
+  // fail_substeps: a step shorter than 1 ms breaks down (ok = false), as a solver can.
+  GainingIntegrator(double a, bool implicit, bool fail_substeps = false)
+      : m_a(a), m_implicit(implicit), m_fail_substeps(fail_substeps) {}
   std::string_view name() const noexcept override { return "gaining"; }
   int order() const noexcept override { return 1; }
   bool implicit() const noexcept override { return m_implicit; }
   void prepare(const SphereModel<double>& model) override { m_inner.prepare(model); }
   IntegratorResult step(SphereModel<double>& model, ForceModel<double>& forces,
                         double h) noexcept override {
+    if (m_fail_substeps && h < 0.999e-3) return {false, 0, true};
     const IntegratorResult r = m_inner.step(model, forces, h);
     model.velocities() *= 1 + m_a * h * h;
     return r;
@@ -149,6 +152,7 @@ class GainingIntegrator final : public Integrator<double> {
   ImplicitEulerIntegrator<double> m_inner;
   double m_a;
   bool m_implicit;
+  bool m_fail_substeps;
 };
 
 struct GainRun {
@@ -158,7 +162,8 @@ struct GainRun {
 
 // One 1 ms step of a 3 x 3 x 3 block moving at 1 m/s whose step gains `limits` times the default
 // limit at full length (a small share of its kinetic energy, so halving halves the gain to 0.1 %).
-GainRun gaining_step(double limits, bool implicit, int halvings, double gain_strain = 0.005) {
+GainRun gaining_step(double limits, bool implicit, int halvings, double gain_strain = 0.005,
+                     bool fail_substeps = false) {
   SphereModel<double> model = block<double>({3, 3, 3}, 0.005);
   model.velocities().col(0).setConstant(1.0);
   auto o = options<double>("implicit_euler");
@@ -169,7 +174,7 @@ GainRun gaining_step(double limits, bool implicit, int halvings, double gain_str
   const double kinetic = 0.5 * model.masses().sum();
   const double dt = 1e-3;
   const double a = limits * limit / (2 * dt * dt * kinetic);
-  Simulation<double> sim(model, std::make_unique<GainingIntegrator>(a, implicit), o);
+  Simulation<double> sim(model, std::make_unique<GainingIntegrator>(a, implicit, fail_substeps), o);
   return {sim.step(dt), limit};
 }
 
@@ -200,6 +205,16 @@ TEST(Simulation, TheLastLevelStandsWhenItStillGains) {
   const GainRun none = gaining_step(3, true, 0);
   EXPECT_EQ(none.report.status, StepStatus::ok);
   EXPECT_EQ(none.report.energy_gain_retries, 0);
+}
+
+TEST(Simulation, AStepRetriedForItsGainIsNotRolledBackWhenTheFinerLevelsFail) {
+  // Every sub-step breaks down: the full step, which passed the checks, runs again and stands.
+  const GainRun r = gaining_step(3, true, 2, 0.005, true);
+  EXPECT_EQ(r.report.status, StepStatus::ok);
+  EXPECT_EQ(r.report.energy_gain_retries, 1);
+  EXPECT_EQ(r.report.substeps, 4);  // the full step, a first sub-step at each finer level, again
+  EXPECT_GT(r.report.energy_gain, 2.9 * r.limit);
+  EXPECT_LT(r.report.energy_gain, 3.1 * r.limit);
 }
 
 TEST(Simulation, ExplicitStepsAreNotRetriedForTheirGain) {

@@ -6,7 +6,8 @@
 //
 //   fsm-demo [--seconds S] [--out DIR] [--model FILE.fsm|SCENE.json] [--json] [--no-render]
 //            [--stress [N]] [--realtime [PRIORITY]] [--threading lockstep|decoupled]
-//            [--export DIR [--export-hz HZ]] [--contact vertices|faces] [--help] [--version]
+//            [--export DIR [--export-hz HZ]] [--contact vertices|faces]
+//            [--energy-gain-strain STRAIN] [--help] [--version]
 //
 // Field names of --json: docs/demo.md.
 

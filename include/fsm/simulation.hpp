@@ -107,11 +107,12 @@ struct DivergencePolicy {
   /// passes the checks above but ends with more energy than it started with plus the work done on
   /// it, by more than the energy of every link and element strained by this much, is retried as
   /// sub-steps like a divergence (with max_substep_halvings above 0). If the last level still gains
-  /// that much, its result is kept when it passes the checks above (StepReport::energy_gain says
-  /// how much it gained). 0 turns this off. The default allows a quarter of the floor above: on the
-  /// bundled uterus and the VHF pelvis, no accepted step of either law gained more than an eighth
-  /// of it, while the steps of a spurious runaway gained one to twenty floors each
-  /// (docs/physics.md, section 7).
+  /// that much, its result is kept when it passes the checks above; if every finer level fails
+  /// them, the finest level that passed runs again (without the warm start it had) and stands if
+  /// it passes them again (StepReport::energy_gain says how much a step gained). 0 turns this
+  /// off. The default allows a quarter of the floor above: on the bundled uterus and the VHF
+  /// pelvis, no accepted step of either law gained more than 0.13 of it, while the steps of a
+  /// spurious runaway gained up to 19 floors in one step (docs/physics.md, section 7).
   Scalar energy_gain_strain{Scalar(0.005)};
 };
 

@@ -143,7 +143,7 @@ fsm.Error for a bad model or option.)")
            py::arg("strain_smoothing") = "element", py::arg("smoothing_element_share") = 0.1,
            py::arg("flutter_guard") = true, py::arg("reuse_end_forces") = true,
            py::arg("adaptive_threads") = false, py::arg("check_step_energy") = true,
-           py::arg("energy_gain_strain") = 0.005)
+           py::arg("energy_gain_strain") = DivergencePolicy<Scalar>{}.energy_gain_strain)
       .def("step", &Sim::step, py::arg("dt"), py::call_guard<py::gil_scoped_release>(),
            "Advances by dt seconds; returns a StepReport. Never raises.")
       .def_property_readonly("uses_pool", &Sim::uses_pool,

@@ -423,6 +423,11 @@ StepReport<Scalar> Simulation<Scalar>::advance(Scalar dt) noexcept {
   const Scalar contact_time = m_forces.contact_time();
   // (An implicit step's contact work does not use the start forces: contact_work().)
   m_forces.start_contacts(m_model, !m_integrator->implicit());
+  // The finest level that passed the checks and was retried only for its gain
+  // (DivergencePolicy::energy_gain_strain): if every finer level fails the checks, it runs again
+  // with its gain allowed (`last_try`), so the limit never rolls back a step the checks accept.
+  int fallback = -1;
+  bool last_try = false;
   for (int level = 0; level <= policy.max_substep_halvings; ++level) {
     const int n = 1 << level;
     const Scalar h = dt / Scalar(n);
@@ -468,9 +473,10 @@ StepReport<Scalar> Simulation<Scalar>::advance(Scalar dt) noexcept {
         gain = energy - (m_start_energy + work);
         // A level that gained energy a backward-Euler step cannot make: retried finer while
         // there is a finer level; the last level's result stands on the checks above.
-        if (good && m_gain_limit > Scalar(0) && m_integrator->implicit() && gain > m_gain_limit &&
-            level < policy.max_substep_halvings) {
+        if (good && !last_try && m_gain_limit > Scalar(0) && m_integrator->implicit() &&
+            gain > m_gain_limit && level < policy.max_substep_halvings) {
           good = false;
+          fallback = level;
           ++report.energy_gain_retries;
         }
       }
@@ -504,6 +510,11 @@ StepReport<Scalar> Simulation<Scalar>::advance(Scalar dt) noexcept {
     m_integrator->reset();              // its warm start came from the rejected state
     m_forces.reuse_kept_forces(false);  // kept at the rejected state: never a step's start
     m_forces.reject_contacts();         // finished at the rejected state: back to the restored
+    if (last_try) break;
+    if (level == policy.max_substep_halvings && fallback >= 0) {
+      last_try = true;
+      level = fallback - 1;  // the loop's increment makes it `fallback`
+    }
   }
   m_forces.set_contact_time(contact_time);
   report.status = StepStatus::diverged;
