@@ -39,6 +39,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <limits>
@@ -233,7 +234,10 @@ int main(int argc, char** argv) {
       }
       std::fprintf(trace.get(), "step,us,cg_iterations,kinetic_energy_J,contacts\n");
     }
-    long iterations = 0, on_pool = 0, unconverged = 0;
+    long iterations = 0, on_pool = 0, unconverged = 0, gain_retries = 0;
+    // The largest energy a timed step gained beyond its start energy and work, over the limit
+    // past which a level is retried finer (DivergencePolicy::energy_gain_strain).
+    double largest_gain = -std::numeric_limits<double>::infinity();
     Index probe_contacts = 0;
     const Index rebuilds_before = contacts.pair_list_rebuilds();
     detection_s = 0;
@@ -249,6 +253,9 @@ int main(int argc, char** argv) {
           std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       iterations += r.solver_iterations;
       unconverged += r.unconverged_solves;
+      gain_retries += r.energy_gain_retries;
+      if (r.advanced() && std::isfinite(r.energy_gain))
+        largest_gain = std::max(largest_gain, double(r.energy_gain));
       if (trace)
         std::fprintf(trace.get(), "%d,%.2f,%d,%.6g,%d\n", s, t[std::size_t(s)] * 1e6,
                      r.solver_iterations,
@@ -267,6 +274,11 @@ int main(int argc, char** argv) {
       return t[std::min(t.size() - 1, std::size_t(q * double(t.size() - 1) + 0.5))];
     };
     const double it = double(iterations) / double(steps);
+    const double gain_to_limit = sim.energy_gain_limit() > 0 && std::isfinite(largest_gain)
+                                     ? largest_gain / sim.energy_gain_limit()
+                                     : std::numeric_limits<double>::quiet_NaN();
+    char gain[32] = "null";
+    if (std::isfinite(gain_to_limit)) std::snprintf(gain, sizeof gain, "%.3g", gain_to_limit);
     if (json)
       std::printf(
           "{\"model\": \"%s\", \"spheres\": %d, \"links\": %d, \"tetrahedra\": %d, "
@@ -274,7 +286,8 @@ int main(int argc, char** argv) {
           "\"probe\": %s, "
           "\"probe_contacts\": %d, \"contacts\": %d, \"steps\": %d, \"mean_us\": %.1f, "
           "\"p50_us\": %.1f, \"p99_us\": %.1f, \"max_us\": %.1f, \"cg_iterations\": %.2f, "
-          "\"unconverged_solves\": %ld, "
+          "\"unconverged_solves\": %ld, \"energy_gain_retries\": %ld, "
+          "\"largest_energy_gain_to_limit\": %s, "
           "\"recovered\": %ld, \"diverged\": %ld, \"diverged_before_timing\": %ld, "
           "\"element_tangent_quality\": %g, \"element_tangents\": %d, \"fluttered\": %d, "
           "\"flutter_guard\": %s, \"extrapolated_warm_start\": %s, \"reuse_end_forces\": %s, "
@@ -284,8 +297,8 @@ int main(int argc, char** argv) {
           path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
           int(sim.model().num_tetrahedra()), law.c_str(), threads, tolerance, velocity_tolerance,
           probe ? "true" : "false", int(probe_contacts), int(contacts.num_contacts()), steps,
-          mean * 1e6, pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it, unconverged, recovered,
-          diverged, diverged_before, element_tangent_quality,
+          mean * 1e6, pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it, unconverged,
+          gain_retries, gain, recovered, diverged, diverged_before, element_tangent_quality,
           int(sim.forces().continuum_element_tangents()),
           int(sim.forces().continuum_fluttered_elements()), flutter_guard ? "true" : "false",
           extrapolate ? "true" : "false", reuse ? "true" : "false", gravity_y ? "-y" : "-z",
@@ -297,15 +310,16 @@ int main(int argc, char** argv) {
       std::printf(
           "%s: %d spheres, %d links, %d tetrahedra; %s law (%s strain), %d thread(s)%s, CG to %g; "
           "probe on '%s' (%d contacts of %d)\n  1 ms step: mean %.1f us, p50 %.1f, p99 "
-          "%.1f, max %.1f; %.2f CG iterations; %ld steps retried as half steps, %ld diverged "
+          "%.1f, max %.1f; %.2f CG iterations; %ld steps retried as half steps (%ld levels for "
+          "their energy gain; the largest gain %s of the limit), %ld diverged "
           "(%ld before timing); %d elements with the element tangent, %d of them fluttered; "
           "contact detection %.1f us a step, part-contact pair list rebuilt %d times\n",
           path.c_str(), int(sim.model().num_nodes()), int(sim.model().num_links()),
           int(sim.model().num_tetrahedra()), law.c_str(), smoothing.c_str(), threads,
           sim.forces().links_partitioned() ? " (links shared by node)" : "", tolerance,
           target->name.c_str(), int(probe_contacts), int(contacts.num_contacts()), mean * 1e6,
-          pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it, recovered, diverged, diverged_before,
-          int(sim.forces().continuum_element_tangents()),
+          pct(0.5) * 1e6, pct(0.99) * 1e6, t.back() * 1e6, it, recovered, gain_retries, gain,
+          diverged, diverged_before, int(sim.forces().continuum_element_tangents()),
           int(sim.forces().continuum_fluttered_elements()), detection_s / double(steps) * 1e6,
           int(contacts.pair_list_rebuilds() - rebuilds_before));
     // "held": at the end of the timed steps, the probe held at its depth for 0.3 s + STEPS ms;

@@ -383,13 +383,6 @@ int main(int argc, char** argv) {
                           examples::read_pixels(gl.width(), gl.height()), gl.width(), gl.height());
     }
 
-    // The largest energy a step gained beyond its start energy and work, in units of the limit
-    // past which a level is retried finer (DivergencePolicy::energy_gain_strain); null if none.
-    char gain[32] = "null", gain_j[32] = "null";
-    if (std::isfinite(st.largest_energy_gain) && sim.energy_gain_limit() > 0)
-      std::snprintf(gain, sizeof gain, "%.3f", st.largest_energy_gain / sim.energy_gain_limit());
-    if (std::isfinite(st.largest_energy_gain))
-      std::snprintf(gain_j, sizeof gain_j, "%.3e", st.largest_energy_gain);
     char json[2048];
     std::snprintf(
         json, sizeof json,
@@ -403,8 +396,7 @@ int main(int argc, char** argv) {
         "\"servo_period_error_p99_us\": %.1f, \"step_p50_us\": %.1f, \"step_p99_us\": %.1f, "
         "\"step_max_us\": %.1f, "
         "\"watchdog_trips\": %zu, \"diverged_steps\": %zu, \"unconverged_solves\": %zu, "
-        "\"energy_gain_retries\": %zu, \"largest_energy_gain_J\": %s, "
-        "\"largest_energy_gain_to_limit\": %s, "
+        "%s, "
         "\"peak_instrument_force_N\": %.4f, \"peak_instrument_force_rendered_N\": %.4f, "
         "\"peak_commanded_force_N\": %.4f, \"stress_processes\": %d, \"realtime_priority\": %d, "
         "\"realtime\": %s, \"threading\": \"%s\", \"law\": \"%s\", \"exported_states\": %zu, "
@@ -414,9 +406,10 @@ int main(int argc, char** argv) {
         skin_mean * 1e6, st.ticks, st.missed_deadlines, st.period_p50 * 1e6, st.period_p99 * 1e6,
         st.period_max * 1e6, st.period_error_p99 * 1e6, st.step_p50 * 1e6, st.step_p99 * 1e6,
         st.step_max * 1e6, st.watchdog_trips, st.diverged_steps, st.unconverged_solves,
-        st.energy_gain_retries, gain_j, gain, st.peak_tissue_force, peak, st.peak_force,
-        stress.count(), args.realtime, st.realtime ? "true" : "false", args.threading.c_str(),
-        law.c_str(), exporter ? exporter->states() : std::size_t(0), args.out.c_str());
+        examples::energy_gain_json(st, sim.energy_gain_limit()).c_str(), st.peak_tissue_force, peak,
+        st.peak_force, stress.count(), args.realtime, st.realtime ? "true" : "false",
+        args.threading.c_str(), law.c_str(), exporter ? exporter->states() : std::size_t(0),
+        args.out.c_str());
     {
       std::ofstream f(args.out + "/stats.json");
       f << json << '\n';

@@ -241,6 +241,19 @@ std::string apply_law(const TissueModel<double>& model, SphereModel<double>& sph
   return continuum && links ? "mixed" : continuum ? "continuum" : "links";
 }
 
+std::string energy_gain_json(const haptics::ServoStats& st, double limit) {
+  char gain[32] = "null", to_limit[32] = "null", out[160];
+  if (std::isfinite(st.largest_energy_gain)) {
+    std::snprintf(gain, sizeof gain, "%.3e", st.largest_energy_gain);
+    if (limit > 0) std::snprintf(to_limit, sizeof to_limit, "%.3f", st.largest_energy_gain / limit);
+  }
+  std::snprintf(out, sizeof out,
+                "\"energy_gain_retries\": %zu, \"largest_energy_gain_J\": %s, "
+                "\"largest_energy_gain_to_limit\": %s",
+                st.energy_gain_retries, gain, to_limit);
+  return out;
+}
+
 int run_myomectomy(const TissueModel<double>& model, const ScenarioOptions& opt) {
   const Part& body = find_part(model, "body");
   const Part& fibroid = find_part(model, "fibroid");
@@ -421,14 +434,16 @@ int run_myomectomy(const TissueModel<double>& model, const ScenarioOptions& opt)
       "\"peak_commanded_force_N\": %.3f, \"servo_ticks\": %zu, \"servo_missed_deadlines\": %zu, "
       "\"servo_period_p99_us\": %.1f, \"step_p50_us\": %.1f, \"step_p99_us\": %.1f, "
       "\"step_max_us\": %.1f, \"watchdog_trips\": %zu, \"diverged_steps\": %zu, "
-      "\"unconverged_solves\": %zu, \"stress_processes\": %d, \"law\": \"%s\", \"out\": \"%s\"}",
+      "\"unconverged_solves\": %zu, %s, \"stress_processes\": %d, \"law\": \"%s\", "
+      "\"out\": \"%s\"}",
       model.name.c_str(), int(model.spheres.num_nodes()), int(held_body),
       int(action.capsule_links()), opt.capsule_tear, int(action.cut().links_cut),
       int(action.cut().tetrahedra_cut), int(action.capsule_after_incision()),
       int(action.torn_links()), int(action.grasped()), freed ? "true" : "false", action.free_time(),
       peak, st.peak_force, st.ticks, st.missed_deadlines, st.period_p99 * 1e6,
       percentile(steps, 0.5) * 1e6, percentile(steps, 0.99) * 1e6, st.step_max * 1e6,
-      st.watchdog_trips, st.diverged_steps, st.unconverged_solves, stress.count(), law.c_str(),
+      st.watchdog_trips, st.diverged_steps, st.unconverged_solves,
+      energy_gain_json(st, sim.energy_gain_limit()).c_str(), stress.count(), law.c_str(),
       opt.out.c_str());
   {
     std::ofstream out(opt.out + "/stats.json");

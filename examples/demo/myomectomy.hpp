@@ -5,6 +5,7 @@
 
 #include <string>
 
+#include "fsm/haptics/servo_loop.hpp"
 #include "fsm/tissue_model.hpp"
 
 namespace fsm::examples {
@@ -24,6 +25,11 @@ struct ScenarioOptions {
 /// "links", "continuum" or "mixed" (the demo's --law, reported in stats.json).
 std::string apply_law(const TissueModel<double>& model, SphereModel<double>& spheres,
                       const std::string& law);
+
+/// The session's energy gain as JSON fields (no braces): `"energy_gain_retries": N,
+/// "largest_energy_gain_J": X, "largest_energy_gain_to_limit": Y` (null where not known; `limit`:
+/// Simulation::energy_gain_limit(), 0 when off).
+std::string energy_gain_json(const haptics::ServoStats& stats, double limit);
 
 /// Runs the scenario on `model` (it needs parts named "body" and "fibroid"; fsm::Error if not).
 /// Returns the process's exit status.
