@@ -178,52 +178,42 @@ GainRun gaining_step(double limits, bool implicit, int halvings, double gain_str
   return {sim.step(dt), limit};
 }
 
+// The step's status, its levels retried for their gain, and its gain within (lo, hi) limits.
+void expect_gain(const GainRun& r, StepStatus status, int retries, double lo, double hi) {
+  EXPECT_EQ(r.report.status, status);
+  EXPECT_EQ(r.report.energy_gain_retries, retries);
+  EXPECT_GT(r.report.energy_gain, lo * r.limit);
+  EXPECT_LT(r.report.energy_gain, hi * r.limit);
+}
+
 TEST(Simulation, AnImplicitStepThatGainsEnergyIsRetriedFiner) {
   // Gains of 3, 1.5 and 0.75 limits at the levels 0, 1 and 2: the third is kept.
   const GainRun r = gaining_step(3, true, 3);
   ASSERT_GT(r.limit, 0);
-  EXPECT_EQ(r.report.status, StepStatus::recovered);
-  EXPECT_EQ(r.report.energy_gain_retries, 2);
+  expect_gain(r, StepStatus::recovered, 2, 0.7, 0.8);
   EXPECT_EQ(r.report.substeps, 1 + 2 + 4);
-  EXPECT_GT(r.report.energy_gain, 0.7 * r.limit);
-  EXPECT_LT(r.report.energy_gain, 0.8 * r.limit);
   // Off: the full step stands with its gain.
-  const GainRun off = gaining_step(3, true, 3, 0.0);
-  EXPECT_EQ(off.report.status, StepStatus::ok);
-  EXPECT_EQ(off.report.energy_gain_retries, 0);
-  EXPECT_GT(off.report.energy_gain, 2.9 * r.limit);
+  expect_gain(gaining_step(3, true, 3, 0.0), StepStatus::ok, 0, 2.9, 3.1);
 }
 
 TEST(Simulation, TheLastLevelStandsWhenItStillGains) {
   // One halving allowed: its 1.5 limits are kept (the divergence checks pass), not rolled back.
-  const GainRun r = gaining_step(3, true, 1);
-  EXPECT_EQ(r.report.status, StepStatus::recovered);
-  EXPECT_EQ(r.report.energy_gain_retries, 1);
-  EXPECT_GT(r.report.energy_gain, 1.4 * r.limit);
-  EXPECT_LT(r.report.energy_gain, 1.6 * r.limit);
+  expect_gain(gaining_step(3, true, 1), StepStatus::recovered, 1, 1.4, 1.6);
   // No halving allowed: nothing to retry.
-  const GainRun none = gaining_step(3, true, 0);
-  EXPECT_EQ(none.report.status, StepStatus::ok);
-  EXPECT_EQ(none.report.energy_gain_retries, 0);
+  expect_gain(gaining_step(3, true, 0), StepStatus::ok, 0, 2.9, 3.1);
 }
 
 TEST(Simulation, AStepRetriedForItsGainIsNotRolledBackWhenTheFinerLevelsFail) {
   // Every sub-step breaks down: the full step, which passed the checks, runs again and stands.
   const GainRun r = gaining_step(3, true, 2, 0.005, true);
-  EXPECT_EQ(r.report.status, StepStatus::ok);
-  EXPECT_EQ(r.report.energy_gain_retries, 1);
+  expect_gain(r, StepStatus::ok, 1, 2.9, 3.1);
   EXPECT_EQ(r.report.substeps, 4);  // the full step, a first sub-step at each finer level, again
-  EXPECT_GT(r.report.energy_gain, 2.9 * r.limit);
-  EXPECT_LT(r.report.energy_gain, 3.1 * r.limit);
 }
 
 TEST(Simulation, ExplicitStepsAreNotRetriedForTheirGain) {
   // Explicit schemes gain energy by their nature (Heun on an undamped mode); only the divergence
   // checks hold them.
-  const GainRun r = gaining_step(3, false, 3);
-  EXPECT_EQ(r.report.status, StepStatus::ok);
-  EXPECT_EQ(r.report.energy_gain_retries, 0);
-  EXPECT_GT(r.report.energy_gain, 2.9 * r.limit);
+  expect_gain(gaining_step(3, false, 3), StepStatus::ok, 0, 2.9, 3.1);
 }
 
 // The real implicit Euler never trips the gain limit on a stretched model ringing down: its steps
