@@ -439,8 +439,7 @@ int main(int argc, char** argv) {
                   int(model.skin.num_vertices()), skin_mean * 1e6);
       std::printf(
           "  peak instrument force %.3f N (in the rendered states: %.3f N; commanded to the "
-          "device: "
-          "%.3f N); watchdog trips %zu\n",
+          "device: %.3f N); watchdog trips %zu\n",
           st.peak_tissue_force, peak, st.peak_force, st.watchdog_trips);
       if (exporter)
         std::printf("  ParaView series: %s (%zu states)\n", exporter->series_path().c_str(),

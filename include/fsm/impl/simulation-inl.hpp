@@ -425,7 +425,8 @@ StepReport<Scalar> Simulation<Scalar>::advance(Scalar dt) noexcept {
   m_forces.start_contacts(m_model, !m_integrator->implicit());
   // The finest level that passed the checks and was retried only for its gain
   // (DivergencePolicy::energy_gain_strain): if every finer level fails the checks, it runs again
-  // with its gain allowed (`last_try`), so the limit never rolls back a step the checks accept.
+  // with its gain allowed (`last_try`), so that the limit does not itself roll back a step the
+  // checks accepted.
   int fallback = -1;
   bool last_try = false;
   for (int level = 0; level <= policy.max_substep_halvings; ++level) {
