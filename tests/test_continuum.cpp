@@ -497,6 +497,56 @@ TEST(Continuum, BlockJacobiBlocksAreTheProductsDiagonalBlocks) {
   }
 }
 
+// On a mesh too: the volumetric part's blocks are the exact sums over each node's pairs
+// (sum_a c_a G_ab G_ab^T, G_ab = d v_a / d x_b). Before 2026-11-29 they were a per-element
+// stand-in that dropped the cross terms between the elements sharing a node pair (the uterus took
+// 4.58 CG iterations a step with it, 4.08 with the exact blocks).
+// Both the SIMD pair kernels and the scalar loops, on one and two threads, with an element
+// tangent among them (one element stretched far) and nodes fixed (their rows are not probed).
+TEST(Continuum, BlockJacobiBlocksAreTheProductsDiagonalBlocksOnAMesh) {
+  for (const bool simd : {true, false})
+    for (const int threads : {1, 2}) {
+      SphereModel<double> m = continuum_block({3, 2, 2}, 0.004);
+      std::mt19937 rng(7);
+      std::uniform_real_distribution<double> u(-1, 1);
+      Positions<double> x = affine(m, M3::Identity());
+      for (Index i = 0; i < m.num_nodes(); ++i)
+        for (int c = 0; c < 3; ++c) x(i, c) += 4e-4 * u(rng);
+      x(m.num_nodes() - 1, 0) += 0.006;  // a corner pulled far out: its element's tangent
+      m.positions() = x;
+      typename ForceModel<double>::Options o;
+      o.gravity.setZero();
+      o.threads = threads;
+      o.simd = simd;
+      ForceModel<double> f(m, o);
+      const Index n = m.num_nodes();
+      ImplicitBuffers step(m);
+      step.prepare(f, m, 1e-3);
+      EXPECT_GT(f.continuum_element_tangents(), 0);
+      std::vector<double> pb(6 * std::size_t(n));
+      f.implicit_diagonal_blocks(m, step.blocks.data(), pb.data());
+      Positions<double> y(n, 3), p(n, 3);
+      int probed_nodes = 0;
+      for (Index i = 0; i < n; ++i) {
+        if (m.fixed()[i]) continue;
+        ++probed_nodes;
+        M3 probed;
+        for (int c = 0; c < 3; ++c) {
+          p.setZero();
+          p(i, c) = 1;
+          f.apply_implicit(m, step.blocks.data(), p, y);
+          probed.col(c) = y.row(i).transpose();
+        }
+        const double* B = &pb[6 * std::size_t(i)];
+        M3 Bi;
+        Bi << B[0], B[3], B[4], B[3], B[1], B[5], B[4], B[5], B[2];
+        EXPECT_TRUE(matrices_near(Bi, probed, 1e-12))
+            << "simd " << simd << " threads " << threads << " node " << i;
+      }
+      EXPECT_GT(probed_nodes, 20);
+    }
+}
+
 // Springs along a sliver's edges cannot resist its apex moving across its base; a light node
 // held only by a sliver (what Mesh_3 leaves where a surface pinches) then flies off in the
 // linearised step. The element tangent holds it: the block sags under gravity without a diverged

@@ -463,6 +463,7 @@ class ContinuumTerm {
     apply_topology(model.tetrahedron_intact().data());
     build_batches();
     build_domains();
+    build_pairs();
   }
 
   /// How the deviatoric strain is measured (StrainSmoothing; default element) and, when it is
@@ -836,11 +837,9 @@ class ContinuumTerm {
     // The diagonal blocks (add_diagonal_blocks()) in the same passes; diag(A) from them at the end.
     std::fill(m_node_blocks.begin(), m_node_blocks.end(), Scalar(0));
     simd::LinkNodeBlocksKernel edge_blocks = nullptr;
-    simd::TetNodeBlocksKernel volumetric_blocks = nullptr;
     if constexpr (std::is_same_v<Scalar, double>)
       if (simd_active()) {
         edge_blocks = simd::link_node_blocks_kernel();
-        volumetric_blocks = simd::tet_node_blocks_kernel();
       }
     // The edges' directions and rates of extension, and the nodal volumes' rates: kept by a
     // viscous add_forces() at this x, v.
@@ -928,6 +927,7 @@ class ContinuumTerm {
       }
     }
     if (!simd_active()) v4 = nullptr;
+    pair_gradients();  // the volumetric product's pairs at this x
     // (grad v_a . v is the nodal volume's rate add_forces() kept: no first pass then.)
     apply_volumetric(
         v, rhs,
@@ -936,24 +936,24 @@ class ContinuumTerm {
           return V > Scalar(0) ? -h2 * m_node_bulk[std::size_t(a)] / V : Scalar(0);
         },
         v4, kept ? m_node_rate.data() : nullptr);
-    // diag(H_vol)_i = sum_a c_a (d v_a / d x_i)^2, d v_a / d x_i = sum_{T at a, i} g_{T,i} / 4.
-    // A stand-in, per element and node pair (a, i) of the element, that drops the cross terms
-    // between the elements sharing a pair: exact on a single element, not on a mesh (neither the
-    // diagonal nor a bound of it; docs/physics.md section 5). The exact one would need a pass
-    // over the node pairs.
-    if constexpr (std::is_same_v<Scalar, double>)
-      if (volumetric_blocks)
-        volumetric_blocks(m_batch_nodes.data(), m_batch_grad.data(), m_node_coefficient.data(),
-                          m_node_blocks.data(), 0, std::int32_t(m_batch_nodes.size() / 16),
-                          std::int32_t(m_volume.size()));
-    for (std::size_t t = 0; t < (volumetric_blocks ? 0 : m_volume.size()); ++t) {
-      const Index* id = &m_tets[4 * t];
-      Scalar c(0);
-      for (int a = 0; a < 4; ++a) c += m_node_coefficient[std::size_t(id[a])];
-      const Scalar* g = grad(t);
-      for (int k = 0; k < 4; ++k)
-        add_block(id[k], g[4 * (3 * k)], g[4 * (3 * k + 1)], g[4 * (3 * k + 2)], c / Scalar(16));
+    // The volumetric part's diagonal blocks, exactly: sum_a c_a G_ab G_ab^T at each node b, row b
+    // of the transposed pairs.
+    bool blocks_done = false;
+    if constexpr (std::is_same_v<Scalar, double>) {
+      if (simd_active())
+        if (const auto blocks = simd::pair_blocks_kernel()) {
+          blocks(m_pair_start.data(), m_pair_node.data(), m_pair_grad_t.data(),
+                 m_node_coefficient.data(), m_node_blocks.data(), 0, std::int32_t(m_num_nodes));
+          blocks_done = true;
+        }
     }
+    for (Index b = 0; b < (blocks_done ? 0 : m_num_nodes); ++b)
+      for (std::int32_t k = m_pair_start[std::size_t(b)]; k < m_pair_start[std::size_t(b) + 1];
+           ++k) {
+        const Scalar* H = &m_pair_grad_t[4 * std::size_t(k)];
+        add_block(b, H[0], H[1], H[2],
+                  m_node_coefficient[std::size_t(m_pair_node[std::size_t(k)])]);
+      }
     for (Index a = 0; a < m_num_nodes; ++a)
       for (int c = 0; c < 3; ++c)
         diagonal[3 * std::ptrdiff_t(a) + c] += m_node_blocks[6 * std::size_t(a) + std::size_t(c)];
@@ -989,11 +989,11 @@ class ContinuumTerm {
     apply_edges(e0, e1, p, y_t, p4);
     bool done = false;
     if constexpr (std::is_same_v<Scalar, double>) {
-      const auto spread = simd::tet_spread_kernel();
-      if (p4 && simd_active() && spread) {
-        const auto [b0, b1] = share(m_batch_nodes.size() / 16, t, T);
-        spread(m_batch_nodes.data(), m_batch_grad.data(), p4, s_t, std::int32_t(b0),
-               std::int32_t(b1), std::int32_t(m_volume.size()));
+      const auto spread = simd::pair_spread_kernel();
+      if (p4 && simd_active() && m_pair_generation == m_generation && spread) {
+        const auto [a0, a1] = share(std::size_t(m_num_nodes), t, T);
+        spread(m_pair_start.data(), m_pair_node.data(), m_pair_grad.data(), p4, s_t,
+               std::int32_t(a0), std::int32_t(a1));
         done = true;
       }
     }
@@ -1018,11 +1018,11 @@ class ContinuumTerm {
   void apply_implicit_phase3(Scalar* y_t, int t, int T, const Scalar* p4 = nullptr) const noexcept {
     if (empty()) return;
     if constexpr (std::is_same_v<Scalar, double>) {
-      const auto gather = simd::tet_gather_kernel();
-      if (p4 && simd_active() && gather) {
-        const auto [b0, b1] = share(m_batch_nodes.size() / 16, t, T);
-        gather(m_batch_nodes.data(), m_batch_grad.data(), m_node_scratch.data(), y_t, 3,
-               std::int32_t(b0), std::int32_t(b1), std::int32_t(m_volume.size()));
+      const auto gather = simd::pair_gather_kernel();
+      if (p4 && simd_active() && m_pair_generation == m_generation && gather) {
+        const auto [a0, a1] = share(std::size_t(m_num_nodes), t, T);
+        gather(m_pair_start.data(), m_pair_node.data(), m_pair_grad_t.data(), m_node_scratch.data(),
+               y_t, std::int32_t(a0), std::int32_t(a1));
         return;
       }
     }
@@ -1233,7 +1233,6 @@ class ContinuumTerm {
     m_energy_out.clear();
     m_x4.clear();
     m_v4.clear();
-    m_y4.clear();
     const std::size_t nt = m_volume.size(), nb = (nt + 3) / 4;
     m_batch_grad.assign(std::size_t(simd::tet_grad_stride) * nb, Scalar(0));
     // (The face-smoothed pass writes the force kernel's outputs for any Scalar.)
@@ -1256,7 +1255,92 @@ class ContinuumTerm {
       m_energy_out.assign(std::size_t(simd::tet_energy_stride) * nb, 0.0);
       m_x4.assign(4 * std::size_t(m_num_nodes), 0.0);
       m_v4.assign(4 * std::size_t(m_num_nodes), 0.0);
-      m_y4.assign(4 * std::size_t(m_num_nodes), 0.0);
+    }
+  }
+  // The volumetric product's node pairs (apply_volumetric()): per node a, the nodes b it shares
+  // an element with, a itself included (CSR, sorted), and per element the pair of each of its
+  // corner pairs (corner i's row, corner j's column: 16 per element).
+  void build_pairs() {
+    const std::size_t n = std::size_t(m_num_nodes), nt = m_volume.size();
+    m_pair_start.assign(n + 1, 0);
+    m_pair_node.clear();
+    m_pair_slot.clear();
+    m_pair_grad.clear();
+    m_pair_generation = ~std::uint64_t(0);
+    if (nt == 0) return;
+    std::vector<std::vector<std::int32_t>> rows(n);
+    for (std::size_t t = 0; t < nt; ++t)
+      for (std::size_t i = 0; i < 4; ++i)
+        for (std::size_t j = 0; j < 4; ++j)
+          rows[std::size_t(m_tets[4 * t + i])].push_back(std::int32_t(m_tets[4 * t + j]));
+    for (std::size_t a = 0; a < n; ++a) {
+      auto& r = rows[a];
+      std::sort(r.begin(), r.end());
+      r.erase(std::unique(r.begin(), r.end()), r.end());
+      m_pair_start[a + 1] = m_pair_start[a] + std::int32_t(r.size());
+      m_pair_node.insert(m_pair_node.end(), r.begin(), r.end());
+    }
+    m_pair_slot.assign(16 * nt, 0);
+    for (std::size_t t = 0; t < nt; ++t)
+      for (std::size_t i = 0; i < 4; ++i) {
+        const auto a = std::size_t(m_tets[4 * t + i]);
+        const auto first = m_pair_node.begin() + m_pair_start[a];
+        const auto last = m_pair_node.begin() + m_pair_start[a + 1];
+        for (std::size_t j = 0; j < 4; ++j)
+          m_pair_slot[16 * t + 4 * i + j] = std::int32_t(
+              std::lower_bound(first, last, std::int32_t(m_tets[4 * t + j])) - m_pair_node.begin());
+      }
+    m_pair_grad.assign(4 * m_pair_node.size(), Scalar(0));
+    m_pair_grad_t.assign(4 * m_pair_node.size(), Scalar(0));
+    m_pair_transpose.assign(m_pair_node.size(), 0);
+    m_pair_diagonal.assign(n, -1);
+    for (std::size_t a = 0; a < n; ++a)
+      for (std::int32_t k = m_pair_start[a]; k < m_pair_start[a + 1]; ++k) {
+        const auto b = std::size_t(m_pair_node[std::size_t(k)]);
+        const auto first = m_pair_node.begin() + m_pair_start[b];
+        const auto last = m_pair_node.begin() + m_pair_start[b + 1];
+        m_pair_transpose[std::size_t(k)] =
+            std::int32_t(std::lower_bound(first, last, std::int32_t(a)) - m_pair_node.begin());
+        if (b == a) m_pair_diagonal[a] = k;
+      }
+  }
+  // G_ab = d(nodal volume a) / d x_b = sum over the elements at a and b of grad_b v_T / 4 (4
+  // scalars per pair, the fourth 0), and its transpose, from the volume gradients at hand: the
+  // pairs off the diagonal summed over the elements, each diagonal pair minus the sum of its
+  // row's others (an element's volume gradients sum to zero). On the pair kernels where the CPU
+  // has them.
+  void pair_gradients() noexcept {
+    std::fill(m_pair_grad.begin(), m_pair_grad.end(), Scalar(0));
+    m_pair_generation = m_generation;
+    if constexpr (std::is_same_v<Scalar, double>) {
+      const auto build = simd::pair_build_kernel();
+      const auto finish = simd::pair_finish_kernel();
+      if (simd_active() && build && finish) {
+        build(m_batch_grad.data(), m_pair_slot.data(), m_pair_grad.data(),
+              std::int32_t(m_volume.size()));
+        finish(m_pair_start.data(), m_pair_diagonal.data(), m_pair_transpose.data(),
+               m_pair_grad.data(), m_pair_grad_t.data(), 0, std::int32_t(m_num_nodes));
+        return;
+      }
+    }
+    for (std::size_t t = 0; t < m_volume.size(); ++t) {
+      const Scalar* g = grad(t);
+      for (std::size_t j = 0; j < 4; ++j)
+        for (std::size_t i = 0; i < 4; ++i) {
+          if (i == j) continue;
+          Scalar* o = &m_pair_grad[4 * std::size_t(m_pair_slot[16 * t + 4 * i + j])];
+          for (std::size_t c = 0; c < 3; ++c) o[c] += Scalar(0.25) * g[4 * (3 * j + c)];
+        }
+    }
+    for (std::size_t a = 0; a < std::size_t(m_num_nodes); ++a) {
+      const std::int32_t d = m_pair_diagonal[a];
+      if (d < 0) continue;
+      Scalar* o = &m_pair_grad[4 * std::size_t(d)];
+      for (std::int32_t k = m_pair_start[a]; k < m_pair_start[a + 1]; ++k)
+        for (std::size_t c = 0; c < 3 && k != d; ++c) o[c] -= m_pair_grad[4 * std::size_t(k) + c];
+      for (std::int32_t k = m_pair_start[a]; k < m_pair_start[a + 1]; ++k)
+        std::copy_n(&m_pair_grad[4 * std::size_t(m_pair_transpose[std::size_t(k)])], 4,
+                    &m_pair_grad_t[4 * std::size_t(k)]);
     }
   }
   // The smoothing domains (StrainSmoothing): per face, edge or node of the elements, the
@@ -1616,17 +1700,14 @@ class ContinuumTerm {
     else
       std::fill(s, s + m_num_nodes, Scalar(0));
     if constexpr (std::is_same_v<Scalar, double>) {
-      const auto spread = simd::tet_spread_kernel();
-      const auto gather = simd::tet_gather_kernel();
-      if (p4 && simd_active() && spread && gather) {
-        const auto nb = std::int32_t(m_batch_nodes.size() / 16);
-        const auto nt = std::int32_t(m_volume.size());
-        if (!spread_s) spread(m_batch_nodes.data(), m_batch_grad.data(), p4, s, 0, nb, nt);
+      const auto pair_spread = simd::pair_spread_kernel();
+      const auto pair_gather = simd::pair_gather_kernel();
+      if (p4 && simd_active() && m_pair_generation == m_generation && pair_spread && pair_gather) {
+        const auto n = std::int32_t(m_num_nodes);
+        if (!spread_s)
+          pair_spread(m_pair_start.data(), m_pair_node.data(), m_pair_grad.data(), p4, s, 0, n);
         for (Index a = 0; a < m_num_nodes; ++a) s[a] *= coefficient(a);
-        std::fill(m_y4.begin(), m_y4.end(), 0.0);
-        gather(m_batch_nodes.data(), m_batch_grad.data(), s, m_y4.data(), 4, 0, nb, nt);
-        for (Index a = 0; a < m_num_nodes; ++a)
-          for (int c = 0; c < 3; ++c) y[3 * std::ptrdiff_t(a) + c] += m_y4[4 * std::size_t(a) + c];
+        pair_gather(m_pair_start.data(), m_pair_node.data(), m_pair_grad_t.data(), s, y, 0, n);
         return;
       }
     }
@@ -1700,7 +1781,12 @@ class ContinuumTerm {
   Index m_forces_inverted{0};
   std::uint64_t m_generation{0};
   std::vector<std::int32_t> m_batch_nodes;
-  std::vector<Scalar> m_batch_rest, m_batch_out, m_batch_grad, m_v4, m_y4;
+  // The volumetric product's node pairs (build_pairs(), pair_gradients()).
+  std::vector<std::int32_t> m_pair_start, m_pair_node, m_pair_slot, m_pair_transpose,
+      m_pair_diagonal;
+  std::vector<Scalar> m_pair_grad, m_pair_grad_t;
+  std::uint64_t m_pair_generation{~std::uint64_t(0)};
+  std::vector<Scalar> m_batch_rest, m_batch_out, m_batch_grad, m_v4;
   mutable std::vector<Scalar> m_x4, m_energy_out;
   // Smoothed strains (build_domains()): each domain's elements (CSR), the share s of their rest
   // volume a domain has, a (m_element_share); per-step scratch: each element's F and the sum of

@@ -3,9 +3,9 @@
 // The continuum law's element loop on SIMD registers (xsimd), chosen at run time for the CPU, as
 // the link kernels are (simd_links.hpp): a plain interface, no Eigen. ContinuumTerm<double> uses
 // it for its per-element work (deformation gradient, neo-Hookean stress, element forces, volume
-// gradients, energy), the forces' scatter to the nodes, the volumetric product and the volumetric
-// part of the block-Jacobi blocks, and keeps the nodal pressures and the flags; its scalar loops
-// stay the reference the tests compare with.
+// gradients, energy), the forces' scatter to the nodes, the volumetric product on node pairs and
+// the volumetric part of the block-Jacobi blocks, and keeps the nodal pressures and the flags; its
+// scalar loops stay the reference the tests compare with.
 
 #include <cstdint>
 
@@ -44,17 +44,6 @@ constexpr int tet_energy_stride = 8;
 using TetEnergyKernel = void (*)(const std::int32_t* nodes, const double* rest, const double* x4,
                                  double j_min, double* out, std::int32_t begin, std::int32_t end);
 
-/// The volumetric product's two passes over batches [begin, end), of which only the first `nt`
-/// elements count, with the volume gradients of the force kernel's output `grad`:
-/// spread: s[a] += (grad v_T . p) / 4 at each corner a (p: 4 doubles per node);
-/// gather: y[a] += c_T grad_a v_T with c_T the mean of s over the corners (y: `stride` doubles
-/// per node, 4 (one 32-byte add per corner, the fourth unchanged) or 3).
-using TetSpreadKernel = void (*)(const std::int32_t* nodes, const double* grad, const double* p4,
-                                 double* s, std::int32_t begin, std::int32_t end, std::int32_t nt);
-using TetGatherKernel = void (*)(const std::int32_t* nodes, const double* grad, const double* s,
-                                 double* y, int stride, std::int32_t begin, std::int32_t end,
-                                 std::int32_t nt);
-
 /// The forces' scatter of ContinuumTerm::add_forces (its second pass) over batches [begin, end),
 /// of which only the first `nt` elements count: with `out` and `grad` the force kernel's outputs
 /// and `s` each node's pressure negated (0 at a node without volume), y[a] += H_a + c_T grad_a v_T
@@ -66,20 +55,42 @@ using TetGatherKernel = void (*)(const std::int32_t* nodes, const double* grad, 
 using TetForceScatterKernel = void (*)(const std::int32_t* nodes, const double* out,
                                        const double* grad, const double* s, double* y, double* mean,
                                        std::int32_t begin, std::int32_t end, std::int32_t nt);
-/// The volumetric part of ContinuumTerm's 3 x 3 diagonal blocks over batches [begin, end), of
-/// which only the first `nt` elements count: per element, a = (the sum of `coefficient` over its
-/// corners) / 16, and a g_k g_k^T added to corner k's 6 doubles (xx, yy, zz, xy, xz, yz) in
-/// `blocks`, g_k the volume gradient at corner k (`grad` as above). Each product rounds as
-/// ContinuumTerm::add_block's.
-using TetNodeBlocksKernel = void (*)(const std::int32_t* nodes, const double* grad,
-                                     const double* coefficient, double* blocks, std::int32_t begin,
-                                     std::int32_t end, std::int32_t nt);
+/// The volumetric product on node pairs (ContinuumTerm's pair gradients): `G` holds 4 doubles per
+/// pair (the fourth 0), the rows in CSR (`start`, n + 1 entries, and `col`).
+/// Build: G[slot[16 t + 4 i + j]] += grad_j v_t / 4 for the first `nt` elements t and their
+/// corners i != j, from the force kernel's `grad` (G zeroed by the caller; the diagonal pairs are
+/// left to the finish kernel).
+using PairBuildKernel = void (*)(const double* grad, const std::int32_t* slot, double* G,
+                                 std::int32_t nt);
+/// Finish, rows [begin, end): each row's diagonal pair `diagonal[a]` (-1: an empty row) set to
+/// minus the sum of the row's other pairs (an element's volume gradients sum to zero), then
+/// H[k] = G[transpose[k]] over the row: H, the transposed pairs, holds G's pair (b, a) at (a, b).
+using PairFinishKernel = void (*)(const std::int32_t* start, const std::int32_t* diagonal,
+                                  const std::int32_t* transpose, double* G, double* H,
+                                  std::int32_t begin, std::int32_t end);
+/// Blocks, rows [begin, end): blocks[a] (xx, yy, zz, xy, xz, yz) += sum over row a of
+/// coefficient[col k] H_k H_k^T: the volumetric part's exact diagonal blocks.
+using PairBlocksKernel = void (*)(const std::int32_t* start, const std::int32_t* col,
+                                  const double* H, const double* coefficient, double* blocks,
+                                  std::int32_t begin, std::int32_t end);
+/// Spread: s[a] = sum over row a of G_k . p[col k] for rows [begin, end) (p: 4 doubles per node,
+/// the fourth not read).
+using PairSpreadKernel = void (*)(const std::int32_t* start, const std::int32_t* col,
+                                  const double* G, const double* p4, double* s, std::int32_t begin,
+                                  std::int32_t end);
+/// Gather: y[a] += sum over row a of s[col k] H_k for rows [begin, end), with H the transposed
+/// pairs (H's pair (a, b) holds G's pair (b, a); y: 3 doubles per node).
+using PairGatherKernel = void (*)(const std::int32_t* start, const std::int32_t* col,
+                                  const double* H, const double* s, double* y, std::int32_t begin,
+                                  std::int32_t end);
 /// The kernels for this CPU, or nullptr (no SIMD build, or a CPU without AVX2 and FMA).
 TetForceKernel tet_force_kernel() noexcept;
 TetForceScatterKernel tet_force_scatter_kernel() noexcept;
-TetNodeBlocksKernel tet_node_blocks_kernel() noexcept;
 TetEnergyKernel tet_energy_kernel() noexcept;
-TetSpreadKernel tet_spread_kernel() noexcept;
-TetGatherKernel tet_gather_kernel() noexcept;
+PairBuildKernel pair_build_kernel() noexcept;
+PairFinishKernel pair_finish_kernel() noexcept;
+PairBlocksKernel pair_blocks_kernel() noexcept;
+PairSpreadKernel pair_spread_kernel() noexcept;
+PairGatherKernel pair_gather_kernel() noexcept;
 
 }  // namespace fsm::detail::simd

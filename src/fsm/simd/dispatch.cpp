@@ -17,10 +17,12 @@
   X(EdgeScatterKernel, edge_scatter_kernel)          \
   X(TetForceKernel, tet_force_kernel)                \
   X(TetEnergyKernel, tet_energy_kernel)              \
-  X(TetSpreadKernel, tet_spread_kernel)              \
-  X(TetGatherKernel, tet_gather_kernel)              \
+  X(PairBuildKernel, pair_build_kernel)              \
+  X(PairFinishKernel, pair_finish_kernel)            \
+  X(PairBlocksKernel, pair_blocks_kernel)            \
+  X(PairSpreadKernel, pair_spread_kernel)            \
+  X(PairGatherKernel, pair_gather_kernel)            \
   X(TetForceScatterKernel, tet_force_scatter_kernel) \
-  X(TetNodeBlocksKernel, tet_node_blocks_kernel)     \
   X(PreconditionKernel, precondition_kernel)         \
   X(CgUpdateKernel, cg_update_kernel)                \
   X(CgDirectionKernel, cg_direction_kernel)          \

@@ -225,82 +225,67 @@ void tet_energy(const std::int32_t* nodes, const double* rest, const double* x4,
   }
 }
 
+// The forces' scatter (simd_tets.hpp): per element c_T, the mean of s over its corners, written to
+// `mean`, and y[a] += H_a + c_T grad_a v_T, the corners in add_forces's order 1, 2, 3, 0 (H_0 =
+// ((0 - H_1) - H_2) - H_3 as there).
 template <class Arch>
-void tet_spread(const std::int32_t* nodes, const double* grad, const double* p4, double* s,
-                std::int32_t begin, std::int32_t end, std::int32_t nt) noexcept {
-  using B = xsimd::batch<double, Arch>;
-  alignas(32) double dd[4];
-  for (std::int32_t b = begin; b < end; ++b) {
-    const std::int32_t* n = nodes + 16 * std::int64_t(b);
-    const double* g = grad + tet_grad_stride * std::int64_t(b);
-    B d(0.0);
-    for (int c = 0; c < 4; ++c) {
-      B px, py, pz;
-      load_transposed<Arch>(p4 + 4 * std::int64_t(n[4 * c]), p4 + 4 * std::int64_t(n[4 * c + 1]),
-                            p4 + 4 * std::int64_t(n[4 * c + 2]),
-                            p4 + 4 * std::int64_t(n[4 * c + 3]), px, py, pz);
-      d += B::load_unaligned(g + 4 * (3 * c)) * px + B::load_unaligned(g + 4 * (3 * c + 1)) * py +
-           B::load_unaligned(g + 4 * (3 * c + 2)) * pz;
-    }
-    (d * B(0.25)).store_aligned(dd);
-    const int lanes = nt - 4 * b < 4 ? int(nt - 4 * b) : 4;
-    for (int l = 0; l < lanes; ++l)
-      for (int c = 0; c < 4; ++c) s[n[4 * c + l]] += dd[l];
-  }
-}
-
-// The corners' scatter the gather kernel and the forces' scatter share: per element c_T, the mean
-// of s over its corners, and y[a] += c_T grad_a v_T; with WithH (the forces' scatter) plus H_a from
-// `h`, c_T written to `mean`, and the corners in add_forces's order 1, 2, 3, 0 (H_0 = ((0 - H_1) -
-// H_2) - H_3 as there).
-template <class Arch, bool WithH>
-inline void tet_corner_scatter(const std::int32_t* nodes, const double* h, const double* grad,
-                               const double* s, double* y, int stride, double* mean,
-                               std::int32_t begin, std::int32_t end, std::int32_t nt) noexcept {
+void tet_force_scatter(const std::int32_t* nodes, const double* h, const double* grad,
+                       const double* s, double* y, double* mean, std::int32_t begin,
+                       std::int32_t end, std::int32_t nt) noexcept {
   using B = xsimd::batch<double, Arch>;
   for (std::int32_t b = begin; b < end; ++b) {
     const std::int32_t* n = nodes + 16 * std::int64_t(b);
     const double* g = grad + tet_grad_stride * std::int64_t(b);
+    const double* o = h + tet_out_stride * std::int64_t(b);
     const int lanes = nt - 4 * b < 4 ? int(nt - 4 * b) : 4;
     double c[4];
     for (int l = 0; l < 4; ++l)
       c[l] = l < lanes ? 0.25 * (s[n[l]] + s[n[4 + l]] + s[n[8 + l]] + s[n[12 + l]]) : 0.0;
-    if constexpr (WithH)
-      for (int l = 0; l < lanes; ++l) mean[4 * std::int64_t(b) + l] = c[l];
+    for (int l = 0; l < lanes; ++l) mean[4 * std::int64_t(b) + l] = c[l];
     const B C{c[0], c[1], c[2], c[3]};  // from registers: a load of four scalar stores stalls
     B h0[3];
-    if constexpr (WithH) {
-      const double* o = h + tet_out_stride * std::int64_t(b);
-      for (int a = 0; a < 3; ++a)
-        h0[a] = B(0.0) - B::load_unaligned(o + 4 * a) - B::load_unaligned(o + 4 * (a + 3)) -
-                B::load_unaligned(o + 4 * (a + 6));
-    }
+    for (int a = 0; a < 3; ++a)
+      h0[a] = B(0.0) - B::load_unaligned(o + 4 * a) - B::load_unaligned(o + 4 * (a + 3)) -
+              B::load_unaligned(o + 4 * (a + 6));
     for (int corner = 0; corner < 4; ++corner) {
-      const int k = WithH ? (corner + 1) % 4 : corner;
+      const int k = (corner + 1) % 4;
       B t[3];
-      for (int a = 0; a < 3; ++a) {
-        t[a] = C * B::load_unaligned(g + 4 * (3 * k + a));
-        if constexpr (WithH)
-          t[a] = (k == 0 ? h0[a]
-                         : B::load_unaligned(h + tet_out_stride * std::int64_t(b) +
-                                             4 * (a + 3 * (k - 1)))) +
-                 t[a];
-      }
+      for (int a = 0; a < 3; ++a)
+        t[a] = (k == 0 ? h0[a] : B::load_unaligned(o + 4 * (a + 3 * (k - 1)))) +
+               C * B::load_unaligned(g + 4 * (3 * k + a));
       B r[4];
       transpose4<Arch>(t[0], t[1], t[2], B(0.0), r[0], r[1], r[2], r[3]);
-      if (stride == 4) {
-        for (int l = 0; l < lanes; ++l) {
-          double* q = y + 4 * std::int64_t(n[4 * k + l]);
-          (B::load_unaligned(q) + r[l]).store_unaligned(q);
-        }
-      } else {
-        alignas(32) double row[4];
-        for (int l = 0; l < lanes; ++l) {
-          double* q = y + std::int64_t(stride) * n[4 * k + l];
-          r[l].store_aligned(row);
-          q[0] += row[0];
-          q[1] += row[1];
-          q[2] += row[2];
+      alignas(32) double row[4];
+      for (int l = 0; l < lanes; ++l) {
+        double* q = y + 3 * std::int64_t(n[4 * k + l]);
+        r[l].store_aligned(row);
+        q[0] += row[0];
+        q[1] += row[1];
+        q[2] += row[2];
+      }
+    }
+  }
+}
+
+// The volumetric product on node pairs (simd_tets.hpp).
+template <class Arch>
+void pair_build(const double* grad, const std::int32_t* slot, double* G, std::int32_t nt) noexcept {
+  using B = xsimd::batch<double, Arch>;
+  for (std::int32_t b = 0; 4 * b < nt; ++b) {
+    const double* g = grad + tet_grad_stride * std::int64_t(b);
+    const int lanes = nt - 4 * b < 4 ? int(nt - 4 * b) : 4;
+    for (int j = 0; j < 4; ++j) {
+      B r[4];
+      transpose4<Arch>(B(0.25) * B::load_unaligned(g + 4 * (3 * j)),
+                       B(0.25) * B::load_unaligned(g + 4 * (3 * j + 1)),
+                       B(0.25) * B::load_unaligned(g + 4 * (3 * j + 2)), B(0.0), r[0], r[1], r[2],
+                       r[3]);
+      for (int l = 0; l < lanes; ++l) {
+        const std::int32_t* s = slot + 16 * (4 * std::int64_t(b) + l) + j;
+        for (int i = 0; i < 4; ++i) {
+          if (i == j) continue;
+          double* o = G + 4 * std::int64_t(s[4 * i]);
+          (B::load_unaligned(o) + r[l]).store_unaligned(o);
         }
       }
     }
@@ -308,52 +293,92 @@ inline void tet_corner_scatter(const std::int32_t* nodes, const double* h, const
 }
 
 template <class Arch>
-void tet_gather(const std::int32_t* nodes, const double* grad, const double* s, double* y,
-                int stride, std::int32_t begin, std::int32_t end, std::int32_t nt) noexcept {
-  tet_corner_scatter<Arch, false>(nodes, nullptr, grad, s, y, stride, nullptr, begin, end, nt);
-}
-
-template <class Arch>
-void tet_force_scatter(const std::int32_t* nodes, const double* out, const double* grad,
-                       const double* s, double* y, double* mean, std::int32_t begin,
-                       std::int32_t end, std::int32_t nt) noexcept {
-  tet_corner_scatter<Arch, true>(nodes, out, grad, s, y, 3, mean, begin, end, nt);
-}
-
-// The volumetric diagonal blocks (simd_tets.hpp): per corner, (A g0) g0, (A g1) g1, (A g2) g2,
-// (A g0) g1, (A g0) g2, (A g1) g2 for the batch's four elements, then added lane by lane.
-template <class Arch>
-void tet_node_blocks(const std::int32_t* nodes, const double* grad, const double* coefficient,
-                     double* blocks, std::int32_t begin, std::int32_t end,
-                     std::int32_t nt) noexcept {
+void pair_finish(const std::int32_t* start, const std::int32_t* diagonal,
+                 const std::int32_t* transpose, double* G, double* H, std::int32_t begin,
+                 std::int32_t end) noexcept {
   using B = xsimd::batch<double, Arch>;
-  alignas(32) double xz[4], yz[4];
-  for (std::int32_t b = begin; b < end; ++b) {
-    const std::int32_t* n = nodes + 16 * std::int64_t(b);
-    const double* g = grad + tet_grad_stride * std::int64_t(b);
-    const int lanes = nt - 4 * b < 4 ? int(nt - 4 * b) : 4;
-    double c[4];
-    for (int l = 0; l < 4; ++l)
-      c[l] = l < lanes ? (coefficient[n[l]] + coefficient[n[4 + l]] + coefficient[n[8 + l]] +
-                          coefficient[n[12 + l]]) /
-                             16.0
-                       : 0.0;
-    const B A{c[0], c[1], c[2], c[3]};
-    for (int k = 0; k < 4; ++k) {
-      const B g0 = B::load_unaligned(g + 4 * (3 * k)), g1 = B::load_unaligned(g + 4 * (3 * k + 1)),
-              g2 = B::load_unaligned(g + 4 * (3 * k + 2));
-      const B a0 = A * g0, a1 = A * g1;
-      B r[4];
-      transpose4<Arch>(a0 * g0, a1 * g1, (A * g2) * g2, a0 * g1, r[0], r[1], r[2], r[3]);
-      (a0 * g2).store_aligned(xz);
-      (a1 * g2).store_aligned(yz);
-      for (int l = 0; l < lanes; ++l) {
-        double* o = blocks + 6 * std::int64_t(n[4 * k + l]);
-        (B::load_unaligned(o) + r[l]).store_unaligned(o);
-        o[4] += xz[l];
-        o[5] += yz[l];
-      }
+  for (std::int32_t a = begin; a < end; ++a) {
+    const std::int32_t d = diagonal[a];
+    if (d < 0) continue;
+    B sum(0.0);
+    for (std::int32_t k = start[a]; k < start[a + 1]; ++k)
+      if (k != d) sum += B::load_unaligned(G + 4 * std::int64_t(k));
+    (B(0.0) - sum).store_unaligned(G + 4 * std::int64_t(d));
+    for (std::int32_t k = start[a]; k < start[a + 1]; ++k)
+      B::load_unaligned(G + 4 * std::int64_t(transpose[k]))
+          .store_unaligned(H + 4 * std::int64_t(k));
+  }
+}
+
+template <class Arch>
+void pair_blocks(const std::int32_t* start, const std::int32_t* col, const double* H,
+                 const double* coefficient, double* blocks, std::int32_t begin,
+                 std::int32_t end) noexcept {
+  using B = xsimd::batch<double, Arch>;
+  using Rotate = xsimd::batch_constant<xsimd::batch<std::uint64_t, Arch>, 1, 2, 0, 3>;
+  alignas(32) double sq[4], cross[4];
+  for (std::int32_t a = begin; a < end; ++a) {
+    B square(0.0), product(0.0);
+    for (std::int32_t k = start[a]; k < start[a + 1]; ++k) {
+      const B h = B::load_unaligned(H + 4 * std::int64_t(k));
+      const B ch = B(coefficient[col[k]]) * h;
+      square = xsimd::fma(ch, h, square);                              // xx yy zz
+      product = xsimd::fma(ch, xsimd::swizzle(h, Rotate()), product);  // xy yz zx
     }
+    square.store_aligned(sq);
+    product.store_aligned(cross);
+    double* o = blocks + 6 * std::int64_t(a);
+    o[0] += sq[0];
+    o[1] += sq[1];
+    o[2] += sq[2];
+    o[3] += cross[0];
+    o[4] += cross[2];
+    o[5] += cross[1];
+  }
+}
+
+template <class Arch>
+void pair_spread(const std::int32_t* start, const std::int32_t* col, const double* G,
+                 const double* p4, double* s, std::int32_t begin, std::int32_t end) noexcept {
+  using B = xsimd::batch<double, Arch>;
+  alignas(32) double sum[4];
+  for (std::int32_t a = begin; a < end; ++a) {
+    B acc0(0.0), acc1(0.0);
+    std::int32_t k = start[a];
+    const std::int32_t last = start[a + 1];
+    for (; k + 1 < last; k += 2) {
+      acc0 = xsimd::fma(B::load_unaligned(G + 4 * std::int64_t(k)),
+                        B::load_unaligned(p4 + 4 * std::int64_t(col[k])), acc0);
+      acc1 = xsimd::fma(B::load_unaligned(G + 4 * std::int64_t(k + 1)),
+                        B::load_unaligned(p4 + 4 * std::int64_t(col[k + 1])), acc1);
+    }
+    if (k < last)
+      acc0 = xsimd::fma(B::load_unaligned(G + 4 * std::int64_t(k)),
+                        B::load_unaligned(p4 + 4 * std::int64_t(col[k])), acc0);
+    (acc0 + acc1).store_aligned(sum);
+    s[a] = sum[0] + sum[1] + sum[2];  // (the fourth lane: G's 0 times whatever p holds there)
+  }
+}
+
+template <class Arch>
+void pair_gather(const std::int32_t* start, const std::int32_t* col, const double* H,
+                 const double* s, double* y, std::int32_t begin, std::int32_t end) noexcept {
+  using B = xsimd::batch<double, Arch>;
+  alignas(32) double sum[4];
+  for (std::int32_t a = begin; a < end; ++a) {
+    B acc0(0.0), acc1(0.0);
+    std::int32_t k = start[a];
+    const std::int32_t last = start[a + 1];
+    for (; k + 1 < last; k += 2) {
+      acc0 = xsimd::fma(B(s[col[k]]), B::load_unaligned(H + 4 * std::int64_t(k)), acc0);
+      acc1 = xsimd::fma(B(s[col[k + 1]]), B::load_unaligned(H + 4 * std::int64_t(k + 1)), acc1);
+    }
+    if (k < last) acc0 = xsimd::fma(B(s[col[k]]), B::load_unaligned(H + 4 * std::int64_t(k)), acc0);
+    (acc0 + acc1).store_aligned(sum);
+    double* o = y + 3 * std::int64_t(a);
+    o[0] += sum[0];
+    o[1] += sum[1];
+    o[2] += sum[2];
   }
 }
 
@@ -365,17 +390,23 @@ void tet_node_blocks(const std::int32_t* nodes, const double* grad, const double
   TetEnergyKernel isa##_tet_energy_kernel() noexcept {              \
     return &tet_energy<Arch>;                                       \
   }                                                                 \
-  TetSpreadKernel isa##_tet_spread_kernel() noexcept {              \
-    return &tet_spread<Arch>;                                       \
+  PairBuildKernel isa##_pair_build_kernel() noexcept {              \
+    return &pair_build<Arch>;                                       \
   }                                                                 \
-  TetGatherKernel isa##_tet_gather_kernel() noexcept {              \
-    return &tet_gather<Arch>;                                       \
+  PairFinishKernel isa##_pair_finish_kernel() noexcept {            \
+    return &pair_finish<Arch>;                                      \
+  }                                                                 \
+  PairBlocksKernel isa##_pair_blocks_kernel() noexcept {            \
+    return &pair_blocks<Arch>;                                      \
+  }                                                                 \
+  PairSpreadKernel isa##_pair_spread_kernel() noexcept {            \
+    return &pair_spread<Arch>;                                      \
+  }                                                                 \
+  PairGatherKernel isa##_pair_gather_kernel() noexcept {            \
+    return &pair_gather<Arch>;                                      \
   }                                                                 \
   TetForceScatterKernel isa##_tet_force_scatter_kernel() noexcept { \
     return &tet_force_scatter<Arch>;                                \
-  }                                                                 \
-  TetNodeBlocksKernel isa##_tet_node_blocks_kernel() noexcept {     \
-    return &tet_node_blocks<Arch>;                                  \
   }
 
 }  // namespace fsm::detail::simd
