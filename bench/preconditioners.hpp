@@ -3,7 +3,8 @@
 // Preconditioners of the implicit step's matrix A = M + h D + h^2 K, for the scale issue's
 // choice of CG preconditioner (docs/benchmarks.md): PCG from zero to |r| <= tol |b| for a random
 // b, counting iterations, with Jacobi, 3 x 3 block-Jacobi (A's own blocks: the integrator's
-// default, which on the continuum law has a stand-in for the volumetric part's), incomplete
+// default; on the continuum law a per-element stand-in for the volumetric part's before
+// 2026-11-29, exact since), incomplete
 // Cholesky (Eigen, IC with shift) and a sparse Cholesky factored at rest (no contacts) or at the
 // state of A: Eigen's SimplicialLLT (AMD ordering) and, when the build found SuiteSparse,
 // CHOLMOD's supernodal factor (FSM_BENCH_CHOLMOD). It times each factor and one application (two

@@ -435,14 +435,16 @@ TEST(Continuum, MatrixFreeTangentMatchesAssembledForEveryTangentChoice) {
     b.segment<3>(0).setZero();
     EXPECT_TRUE(matrices_near(Eigen::Map<const Eigen::VectorXd>(step.rhs.data(), 3 * n), b, 1e-10))
         << "quality " << quality;
-    // The block-Jacobi blocks (the volumetric part's per element, so not A's exactly) are
-    // positive definite and at least the mass.
+    // The block-Jacobi blocks are A's diagonal blocks (the volumetric part's too, summed over
+    // the node pairs), positive definite and at least the mass.
     std::vector<double> pb(6 * std::size_t(n));
     f.implicit_diagonal_blocks(m, step.blocks.data(), pb.data());
     for (Index i = 1; i < n; ++i) {
       const double* B = &pb[6 * std::size_t(i)];
       Eigen::Matrix3d Bi;
       Bi << B[0], B[3], B[4], B[3], B[1], B[5], B[4], B[5], B[2];
+      EXPECT_TRUE(matrices_near(Bi, Eigen::Matrix3d(A.block<3, 3>(3 * i, 3 * i)), 1e-10))
+          << i << " " << quality;
       EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(Bi).eigenvalues().minCoeff(),
                 m.masses()[i] * (1 - 1e-12))
           << i << " " << quality;
@@ -456,9 +458,8 @@ TEST(Continuum, MatrixFreeTangentMatchesAssembledForEveryTangentChoice) {
 }
 
 // The block-Jacobi blocks are the diagonal blocks of the operator the matrix-free product applies.
-// On a single element the volumetric part's per-element blocks are exact (no second element to
-// share a node pair), so a stretched element, which gets the element tangent, checks that
-// tangent's blocks: with Q from tangent_rotation()'s two Newton steps short of orthogonal at a
+// On a single element a stretched element, which gets the element tangent, checks that tangent's
+// blocks: with Q from tangent_rotation()'s two Newton steps short of orthogonal at a
 // 2.5-fold stretch, a block with I in place of Q Q^T puts the node's block 3 % off.
 TEST(Continuum, BlockJacobiBlocksAreTheProductsDiagonalBlocks) {
   for (const double stretch : {1.0, 2.5}) {
@@ -523,6 +524,8 @@ TEST(Continuum, BlockJacobiBlocksAreTheProductsDiagonalBlocksOnAMesh) {
       ImplicitBuffers step(m);
       step.prepare(f, m, 1e-3);
       EXPECT_GT(f.continuum_element_tangents(), 0);
+      // (Both paths: the SIMD one on the pair kernels where the CPU has them.)
+      EXPECT_EQ(f.continuum_pair_product(), simd && detail::simd::pair_spread_kernel() != nullptr);
       std::vector<double> pb(6 * std::size_t(n));
       f.implicit_diagonal_blocks(m, step.blocks.data(), pb.data());
       Positions<double> y(n, 3), p(n, 3);

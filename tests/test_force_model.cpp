@@ -696,7 +696,7 @@ TEST(ForceModel, SimdElementKernelsMatchTheScalarLoops) {
           EXPECT_LE((ra - rb).cwiseAbs().maxCoeff(), 1e-13 * ra.cwiseAbs().maxCoeff());
           EXPECT_LE((da - db).cwiseAbs().maxCoeff(), 1e-13 * da.cwiseAbs().maxCoeff());
           // The block-Jacobi blocks: the edges' on the links' node-block kernel, the volumetric
-          // ones on the elements'.
+          // ones on the node-pair kernels.
           Eigen::ArrayXd pa(6 * n), pb(6 * n);
           scalar.implicit_diagonal_blocks(model, blocks.data(), pa.data());
           simd.implicit_diagonal_blocks(model, blocks.data(), pb.data());

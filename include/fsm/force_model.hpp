@@ -399,8 +399,8 @@ class ForceModel {
   /// (block-Jacobi preconditioner), 6 scalars per node (xx, yy, zz, xy, xz, yz) into `out`
   /// (`6|V|`): mass with drag, the links' and elements' blocks on their nodes (kept by
   /// prepare_implicit(), which `blocks` must be the output of) and the contacts in the solve;
-  /// fixed nodes get the identity. The continuum elements' volumetric part is a per-element
-  /// stand-in for its blocks, not A's (docs/physics.md section 5). Serial; no allocation.
+  /// fixed nodes get the identity. The continuum elements' volumetric part is exact too, summed
+  /// over each node's pairs (docs/physics.md section 5). Serial; no allocation.
   void implicit_diagonal_blocks(const SphereModel<Scalar>& model, const Scalar* blocks,
                                 Scalar* out) const noexcept;
   /// @brief y = A p for the blocks of prepare_implicit(); rows of fixed nodes are zero.
@@ -428,6 +428,12 @@ class ForceModel {
   /// strongly strained or fluttering ones, Options::element_tangent_quality and flutter_guard).
   [[nodiscard]] Index continuum_element_tangents() const noexcept {
     return Index(m_continuum.num_element_tangents());
+  }
+  /// @brief Whether the continuum law's implicit product runs on the node-pair SIMD kernels now:
+  /// prepare_implicit() built the pairs and nothing has changed the elements since (else it runs
+  /// on the scalar loops, the same product; docs/physics.md section 5). A diagnostic.
+  [[nodiscard]] bool continuum_pair_product() const noexcept {
+    return m_continuum.pair_product_ready();
   }
   /// @brief Continuum elements found fluttering in an implicit step (their J swinging back and
   /// forth from step to step), which keep the element tangent since (docs/physics.md section 11).

@@ -290,6 +290,14 @@ class ContinuumTerm {
   /// The elements that have the element tangent at the last add_forces(): those of poor shape,
   /// those strained past element_tangent_strain and those found fluttering (flutter_change).
   [[nodiscard]] std::size_t num_element_tangents() const noexcept { return m_dense.size(); }
+  /// Whether apply_implicit() runs the volumetric product on the pair kernels (given p padded to
+  /// four): the CPU has them and the pairs are those of the last prepare_implicit().
+  [[nodiscard]] bool pair_product_ready() const noexcept {
+    if constexpr (std::is_same_v<Scalar, double>)
+      return !empty() && simd_active() && m_pair_generation == m_generation &&
+             simd::pair_spread_kernel() && simd::pair_gather_kernel();
+    return false;
+  }
   /// The elements found fluttering (flutter_change) since the last refresh(): they keep the
   /// element tangent.
   [[nodiscard]] std::size_t num_fluttered() const noexcept { return m_num_fluttered; }
@@ -960,7 +968,7 @@ class ContinuumTerm {
   }
 
   /// Adds the 3 x 3 diagonal blocks of the tangent prepared by prepare_implicit() (6 scalars per
-  /// node: xx, yy, zz, xy, xz, yz), with the volumetric part per element as in its diagonal.
+  /// node: xx, yy, zz, xy, xz, yz), the volumetric part's summed over the node's pairs.
   void add_diagonal_blocks(Scalar* out) const noexcept {
     if (empty()) return;
     for (std::size_t k = 0; k < m_node_blocks.size(); ++k) out[k] += m_node_blocks[k];
@@ -1266,6 +1274,9 @@ class ContinuumTerm {
     m_pair_node.clear();
     m_pair_slot.clear();
     m_pair_grad.clear();
+    m_pair_grad_t.clear();
+    m_pair_transpose.clear();
+    m_pair_diagonal.assign(n, -1);
     m_pair_generation = ~std::uint64_t(0);
     if (nt == 0) return;
     std::vector<std::vector<std::int32_t>> rows(n);
@@ -1293,7 +1304,6 @@ class ContinuumTerm {
     m_pair_grad.assign(4 * m_pair_node.size(), Scalar(0));
     m_pair_grad_t.assign(4 * m_pair_node.size(), Scalar(0));
     m_pair_transpose.assign(m_pair_node.size(), 0);
-    m_pair_diagonal.assign(n, -1);
     for (std::size_t a = 0; a < n; ++a)
       for (std::int32_t k = m_pair_start[a]; k < m_pair_start[a + 1]; ++k) {
         const auto b = std::size_t(m_pair_node[std::size_t(k)]);

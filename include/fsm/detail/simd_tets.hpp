@@ -24,10 +24,10 @@ constexpr int tet_rest_c10 = 36, tet_rest_c10_large = 40, tet_rest_q_switch = 44
 /// minus their sum), then the current volume, its rate (0 without velocities), the state factor
 /// (bilinear stiffening times max(1, J^-2/3)), I1bar - 3 and V W (the deviatoric energy, as the
 /// energy kernel computes it); and tet_grad_stride doubles to
-/// `grad`: the volume gradients (corner k, axis a at [4 (3 k + a)]). The gradients have their own
-/// array because the implicit product reads them at every iteration: a compact one keeps a large
-/// model's in cache (with the other outputs between them, a 19,683-node lattice's product ran
-/// 50 % slower than the scalar loop's).
+/// `grad`: the volume gradients (corner k, axis a at [4 (3 k + a)]), in their own compact array:
+/// the node pairs' build (below) reads them once a step, and the scalar product at every
+/// iteration (with the other outputs between them, a 19,683-node lattice's product on the old
+/// element kernels ran 50 % slower than the scalar loop's).
 constexpr int tet_out_stride = 4 * 14;
 constexpr int tet_out_volume = 4 * 9, tet_out_rate = 4 * 10, tet_out_state = 4 * 11,
               tet_out_distortion = 4 * 12, tet_out_energy = 4 * 13;
