@@ -457,6 +457,28 @@ TEST(Continuum, MatrixFreeTangentMatchesAssembledForEveryTangentChoice) {
   }
 }
 
+/// Node i's 3 x 3 block of the block-Jacobi blocks `pb` (6 per node: xx, yy, zz, xy, xz, yz).
+M3 stored_block(const std::vector<double>& pb, Index i) {
+  const double* B = &pb[6 * std::size_t(i)];
+  M3 Bi;
+  Bi << B[0], B[3], B[4], B[3], B[1], B[5], B[4], B[5], B[2];
+  return Bi;
+}
+
+/// Node i's diagonal block of the matrix-free product A, probed column by column.
+M3 probed_block(ForceModel<double>& f, const SphereModel<double>& m, const ImplicitBuffers& step,
+                Index i) {
+  Positions<double> y(m.num_nodes(), 3), p = Positions<double>::Zero(m.num_nodes(), 3);
+  M3 probed;
+  for (int c = 0; c < 3; ++c) {
+    p.setZero();
+    p(i, c) = 1;
+    f.apply_implicit(m, step.blocks.data(), p, y);
+    probed.col(c) = y.row(i).transpose();
+  }
+  return probed;
+}
+
 // The block-Jacobi blocks are the diagonal blocks of the operator the matrix-free product applies.
 // On a single element a stretched element, which gets the element tangent, checks that tangent's
 // blocks: with Q from tangent_rotation()'s two Newton steps short of orthogonal at a
@@ -478,23 +500,12 @@ TEST(Continuum, BlockJacobiBlocksAreTheProductsDiagonalBlocks) {
     const double h = 1e-3;
     ImplicitBuffers step(m);
     step.prepare(f, m, h);
-    Positions<double> y(n, 3), p(n, 3);
     EXPECT_EQ(f.continuum_element_tangents(), stretch > 1 ? 1 : 0);
     std::vector<double> pb(6 * std::size_t(n));
     f.implicit_diagonal_blocks(m, step.blocks.data(), pb.data());
-    for (Index i = 0; i < n; ++i) {
-      M3 probed;
-      for (int c = 0; c < 3; ++c) {
-        p.setZero();
-        p(i, c) = 1;
-        f.apply_implicit(m, step.blocks.data(), p, y);
-        probed.col(c) = y.row(i).transpose();
-      }
-      const double* B = &pb[6 * std::size_t(i)];
-      M3 Bi;
-      Bi << B[0], B[3], B[4], B[3], B[1], B[5], B[4], B[5], B[2];
-      EXPECT_TRUE(matrices_near(Bi, probed, 1e-12)) << "stretch " << stretch << " node " << i;
-    }
+    for (Index i = 0; i < n; ++i)
+      EXPECT_TRUE(matrices_near(stored_block(pb, i), probed_block(f, m, step, i), 1e-12))
+          << "stretch " << stretch << " node " << i;
   }
 }
 
@@ -528,22 +539,11 @@ TEST(Continuum, BlockJacobiBlocksAreTheProductsDiagonalBlocksOnAMesh) {
       EXPECT_EQ(f.continuum_pair_product(), simd && detail::simd::pair_spread_kernel() != nullptr);
       std::vector<double> pb(6 * std::size_t(n));
       f.implicit_diagonal_blocks(m, step.blocks.data(), pb.data());
-      Positions<double> y(n, 3), p(n, 3);
       int probed_nodes = 0;
       for (Index i = 0; i < n; ++i) {
         if (m.fixed()[i]) continue;
         ++probed_nodes;
-        M3 probed;
-        for (int c = 0; c < 3; ++c) {
-          p.setZero();
-          p(i, c) = 1;
-          f.apply_implicit(m, step.blocks.data(), p, y);
-          probed.col(c) = y.row(i).transpose();
-        }
-        const double* B = &pb[6 * std::size_t(i)];
-        M3 Bi;
-        Bi << B[0], B[3], B[4], B[3], B[1], B[5], B[4], B[5], B[2];
-        EXPECT_TRUE(matrices_near(Bi, probed, 1e-12))
+        EXPECT_TRUE(matrices_near(stored_block(pb, i), probed_block(f, m, step, i), 1e-12))
             << "simd " << simd << " threads " << threads << " node " << i;
       }
       EXPECT_GT(probed_nodes, 20);

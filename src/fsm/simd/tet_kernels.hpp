@@ -337,9 +337,11 @@ void pair_blocks(const std::int32_t* start, const std::int32_t* col, const doubl
   }
 }
 
-template <class Arch>
-void pair_spread(const std::int32_t* start, const std::int32_t* col, const double* G,
-                 const double* p4, double* s, std::int32_t begin, std::int32_t end) noexcept {
+// Over each row a in [begin, end): acc = term(k, acc) summed over the row's pairs k, two pairs in
+// flight, then done(a, the four lanes of the sum).
+template <class Arch, class Term, class Done>
+inline void pair_rows(const std::int32_t* start, std::int32_t begin, std::int32_t end, Term term,
+                      Done done) noexcept {
   using B = xsimd::batch<double, Arch>;
   alignas(32) double sum[4];
   for (std::int32_t a = begin; a < end; ++a) {
@@ -347,39 +349,44 @@ void pair_spread(const std::int32_t* start, const std::int32_t* col, const doubl
     std::int32_t k = start[a];
     const std::int32_t last = start[a + 1];
     for (; k + 1 < last; k += 2) {
-      acc0 = xsimd::fma(B::load_unaligned(G + 4 * std::int64_t(k)),
-                        B::load_unaligned(p4 + 4 * std::int64_t(col[k])), acc0);
-      acc1 = xsimd::fma(B::load_unaligned(G + 4 * std::int64_t(k + 1)),
-                        B::load_unaligned(p4 + 4 * std::int64_t(col[k + 1])), acc1);
+      acc0 = term(k, acc0);
+      acc1 = term(k + 1, acc1);
     }
-    if (k < last)
-      acc0 = xsimd::fma(B::load_unaligned(G + 4 * std::int64_t(k)),
-                        B::load_unaligned(p4 + 4 * std::int64_t(col[k])), acc0);
+    if (k < last) acc0 = term(k, acc0);
     (acc0 + acc1).store_aligned(sum);
-    s[a] = sum[0] + sum[1] + sum[2];  // (the fourth lane: G's 0 times whatever p holds there)
+    done(a, sum);
   }
+}
+
+template <class Arch>
+void pair_spread(const std::int32_t* start, const std::int32_t* col, const double* G,
+                 const double* p4, double* s, std::int32_t begin, std::int32_t end) noexcept {
+  using B = xsimd::batch<double, Arch>;
+  pair_rows<Arch>(
+      start, begin, end,
+      [&](std::int32_t k, const B& acc) {
+        return xsimd::fma(B::load_unaligned(G + 4 * std::int64_t(k)),
+                          B::load_unaligned(p4 + 4 * std::int64_t(col[k])), acc);
+      },
+      // (The fourth lane: G's 0 times whatever p holds there.)
+      [&](std::int32_t a, const double* sum) { s[a] = sum[0] + sum[1] + sum[2]; });
 }
 
 template <class Arch>
 void pair_gather(const std::int32_t* start, const std::int32_t* col, const double* H,
                  const double* s, double* y, std::int32_t begin, std::int32_t end) noexcept {
   using B = xsimd::batch<double, Arch>;
-  alignas(32) double sum[4];
-  for (std::int32_t a = begin; a < end; ++a) {
-    B acc0(0.0), acc1(0.0);
-    std::int32_t k = start[a];
-    const std::int32_t last = start[a + 1];
-    for (; k + 1 < last; k += 2) {
-      acc0 = xsimd::fma(B(s[col[k]]), B::load_unaligned(H + 4 * std::int64_t(k)), acc0);
-      acc1 = xsimd::fma(B(s[col[k + 1]]), B::load_unaligned(H + 4 * std::int64_t(k + 1)), acc1);
-    }
-    if (k < last) acc0 = xsimd::fma(B(s[col[k]]), B::load_unaligned(H + 4 * std::int64_t(k)), acc0);
-    (acc0 + acc1).store_aligned(sum);
-    double* o = y + 3 * std::int64_t(a);
-    o[0] += sum[0];
-    o[1] += sum[1];
-    o[2] += sum[2];
-  }
+  pair_rows<Arch>(
+      start, begin, end,
+      [&](std::int32_t k, const B& acc) {
+        return xsimd::fma(B(s[col[k]]), B::load_unaligned(H + 4 * std::int64_t(k)), acc);
+      },
+      [&](std::int32_t a, const double* sum) {
+        double* o = y + 3 * std::int64_t(a);
+        o[0] += sum[0];
+        o[1] += sum[1];
+        o[2] += sum[2];
+      });
 }
 
 // The getters of one instruction set's element kernels, as FSM_SIMD_LINK_GETTERS.
