@@ -997,11 +997,10 @@ class ContinuumTerm {
     apply_edges(e0, e1, p, y_t, p4);
     bool done = false;
     if constexpr (std::is_same_v<Scalar, double>) {
-      const auto spread = simd::pair_spread_kernel();
-      if (p4 && simd_active() && m_pair_generation == m_generation && spread) {
+      if (p4 && pair_product_ready()) {
         const auto [a0, a1] = share(std::size_t(m_num_nodes), t, T);
-        spread(m_pair_start.data(), m_pair_node.data(), m_pair_grad.data(), p4, s_t,
-               std::int32_t(a0), std::int32_t(a1));
+        simd::pair_spread_kernel()(m_pair_start.data(), m_pair_node.data(), m_pair_grad.data(), p4,
+                                   s_t, std::int32_t(a0), std::int32_t(a1));
         done = true;
       }
     }
@@ -1026,11 +1025,10 @@ class ContinuumTerm {
   void apply_implicit_phase3(Scalar* y_t, int t, int T, const Scalar* p4 = nullptr) const noexcept {
     if (empty()) return;
     if constexpr (std::is_same_v<Scalar, double>) {
-      const auto gather = simd::pair_gather_kernel();
-      if (p4 && simd_active() && m_pair_generation == m_generation && gather) {
+      if (p4 && pair_product_ready()) {
         const auto [a0, a1] = share(std::size_t(m_num_nodes), t, T);
-        gather(m_pair_start.data(), m_pair_node.data(), m_pair_grad_t.data(), m_node_scratch.data(),
-               y_t, std::int32_t(a0), std::int32_t(a1));
+        simd::pair_gather_kernel()(m_pair_start.data(), m_pair_node.data(), m_pair_grad_t.data(),
+                                   m_node_scratch.data(), y_t, std::int32_t(a0), std::int32_t(a1));
         return;
       }
     }
@@ -1267,7 +1265,8 @@ class ContinuumTerm {
   }
   // The volumetric product's node pairs (apply_volumetric()): per node a, the nodes b it shares
   // an element with, a itself included (CSR, sorted), and per element the pair of each of its
-  // corner pairs (corner i's row, corner j's column: 16 per element).
+  // corner pairs (corner i's row, corner j's column: 16 per element; those with i == j are not
+  // read: pair_gradients() sets the diagonal pairs from their rows).
   void build_pairs() {
     const std::size_t n = std::size_t(m_num_nodes), nt = m_volume.size();
     m_pair_start.assign(n + 1, 0);
@@ -1710,14 +1709,14 @@ class ContinuumTerm {
     else
       std::fill(s, s + m_num_nodes, Scalar(0));
     if constexpr (std::is_same_v<Scalar, double>) {
-      const auto pair_spread = simd::pair_spread_kernel();
-      const auto pair_gather = simd::pair_gather_kernel();
-      if (p4 && simd_active() && m_pair_generation == m_generation && pair_spread && pair_gather) {
+      if (p4 && pair_product_ready()) {
         const auto n = std::int32_t(m_num_nodes);
         if (!spread_s)
-          pair_spread(m_pair_start.data(), m_pair_node.data(), m_pair_grad.data(), p4, s, 0, n);
+          simd::pair_spread_kernel()(m_pair_start.data(), m_pair_node.data(), m_pair_grad.data(),
+                                     p4, s, 0, n);
         for (Index a = 0; a < m_num_nodes; ++a) s[a] *= coefficient(a);
-        pair_gather(m_pair_start.data(), m_pair_node.data(), m_pair_grad_t.data(), s, y, 0, n);
+        simd::pair_gather_kernel()(m_pair_start.data(), m_pair_node.data(), m_pair_grad_t.data(), s,
+                                   y, 0, n);
         return;
       }
     }
